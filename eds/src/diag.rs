@@ -120,12 +120,17 @@ pub fn render_to(out: &mut String, d: &Diagnostic, source: &crate::source::Sourc
     // were most of the cost of rendering one. Each line's lead (the gutter's spaces and what
     // follows them) is one slice of a padded constant, and a number is one slice of digits:
     // every push costs a capacity check and a copy, whatever its length.
-    out.push_str(match d.severity {
-        Severity::Note => "note[",
-        Severity::Warning => "warning[",
-        Severity::Error => "error[",
-    });
-    out.push_str(d.code.0);
+    // (Each push of a text of a length known here is a few moves, not a call to `memcpy`:
+    // hence a push in each arm, and codes, all five bytes long, pushed as five bytes.)
+    match d.severity {
+        Severity::Note => out.push_str("note["),
+        Severity::Warning => out.push_str("warning["),
+        Severity::Error => out.push_str("error["),
+    }
+    match d.code.0.get(..5) {
+        Some(code) if d.code.0.len() == 5 => out.push_str(code),
+        _ => out.push_str(d.code.0),
+    }
     out.push_str("]: ");
     out.push_str(&d.message);
     out.push('\n');
@@ -146,8 +151,7 @@ pub fn render_to(out: &mut String, d: &Diagnostic, source: &crate::source::Sourc
             let start_col = lc.col.saturating_sub(1).min(line_chars);
             let span_text = source.slice(span);
             // (The span's first line: up to its first line end.)
-            let first = span_text.as_bytes().iter().position(|&b| b == b'\n' || b == b'\r');
-            let first = first.map_or(span_text, |end| &span_text[..end]);
+            let first = &span_text[..crate::lex::prefix_without(span_text.as_bytes(), [b'\n', b'\r'])];
             let span_chars = if first.is_ascii() { first.len() as u32 } else { first.chars().count() as u32 };
             let width = span_chars.min(line_chars.saturating_sub(start_col)).max(1);
             // A long line is cut to a window around the span's start, marked with `…`.
@@ -165,7 +169,7 @@ pub fn render_to(out: &mut String, d: &Diagnostic, source: &crate::source::Sourc
                 // An ASCII line (most are): its characters are its bytes, pushed as a slice.
                 Some(part) if ascii => {
                     let part = if to < line_chars { part } else { part.trim_end() };
-                    if part.as_bytes().contains(&b'\t') {
+                    if crate::lex::prefix_without(part.as_bytes(), [b'\t']) < part.len() {
                         out.extend(part.chars().map(untab));
                     } else {
                         out.push_str(part);
@@ -180,7 +184,11 @@ pub fn render_to(out: &mut String, d: &Diagnostic, source: &crate::source::Sourc
                     }
                 }
             }
-            out.push_str(if to < line_chars { "…\n" } else { "\n" });
+            if to < line_chars {
+                out.push_str("…\n");
+            } else {
+                out.push('\n');
+            }
             // Underline the part of the span that lies on this line and in the window (at
             // least one caret).
             let lead = start_col - from + u32::from(from > 0);
@@ -227,7 +235,28 @@ const NOTE_IN: &str = "                 = note: in ";
 const HELP: &str = "                 = help: ";
 
 /// `gutter` spaces and then `lead` (one of the padded leads, [`ARROW`] and the others).
+/// Inlined, with a case for each gutter of up to five digits, so that each push is of a length
+/// known where it is made (a few moves, not a call to `memcpy`).
+#[inline(always)]
 fn push_lead(out: &mut String, gutter: usize, lead: &str) {
+    let at = |g: usize| lead.get(LEAD_ROOM - g..);
+    let part = match gutter {
+        1 => at(1),
+        2 => at(2),
+        3 => at(3),
+        4 => at(4),
+        5 => at(5),
+        _ => None,
+    };
+    match part {
+        Some(part) => out.push_str(part),
+        None => push_lead_any(out, gutter, lead),
+    }
+}
+
+/// [`push_lead`] for any gutter.
+#[inline(never)]
+fn push_lead_any(out: &mut String, gutter: usize, lead: &str) {
     match lead.get(LEAD_ROOM.saturating_sub(gutter)..) {
         Some(part) if gutter <= LEAD_ROOM => out.push_str(part),
         _ => {

@@ -32,12 +32,14 @@
 //! line end) compare sixteen bytes at a time (SSE2 on x86_64, one of the crate's two `unsafe`
 //! uses; eight-byte words elsewhere), and the line end is one match on two bytes. The commonest line,
 //! `Key=Value` with nothing to trim, has a shorter path of its own
-//! ([`Lexer::next_plain_entry`], tested to agree with the general one): on x86_64 it reads the
-//! line in sixteen-byte blocks from its start, each compared once with `=` and the line ends, so
-//! the block that holds the `=` gives the end of a short value too (lines within sixteen bytes
-//! of the end of the text take the byte-wise scan), and cuts the key and the value out of the
-//! text without checking for char boundaries again (the crate's other `unsafe` use: the cuts are
-//! at ASCII bytes the scan found).
+//! ([`Lexer::next_plain_entry`], tested to agree with the general one): on x86_64 it compares
+//! the sixteen bytes from the line's start once with `=`, the line ends and the printable range,
+//! and a line that ends within them (seven in ten) is decided on those masks alone: where key and
+//! value end, whether a byte at either end of them needs trimming, which line end it has; a
+//! longer line's further blocks are compared with the line ends only (lines within sixteen
+//! bytes of the end of the text take the byte-wise scan). It cuts the key and the value out of
+//! the text without checking for char boundaries again (the crate's other `unsafe` use: the
+//! cuts are at ASCII bytes the scan found).
 //! Trimming looks at the bytes at either end and only falls back to [`str::trim`] when it meets
 //! a non-ASCII byte there (which may be Unicode white space). [`Lexer`] allocates nothing; [`lex`]
 //! allocates the `Vec` of lines and the line index.
@@ -184,11 +186,15 @@ impl<'a> Lexer<'a> {
         if !PLAIN_FIRST[first as usize] {
             return None;
         }
+        // Every path gives the line's shape (`PlainLine`), and the entry is cut in one place.
         #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
-        if let Some(read) = self.plain_entry_in_blocks() {
-            return read;
-        }
-        self.plain_entry_bytes()
+        let line = match self.plain_line_in_blocks() {
+            Some(line) => line?,
+            None => self.plain_line_bytes()?,
+        };
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
+        let line = self.plain_line_bytes()?;
+        Some(self.cut_plain_entry(line))
     }
 
     /// Reads the next line if it is the commonest section header: `[Name]` at the start of the
@@ -239,69 +245,106 @@ impl<'a> Lexer<'a> {
         Some(offset(self.text.as_bytes(), self.rest.as_bytes()) as u32)
     }
 
-    /// [`Lexer::next_plain_entry`] for a line whose end lies at least sixteen bytes before the
-    /// end of the text (`None` otherwise: then [`Lexer::plain_entry_bytes`] reads it). The line
-    /// is read in sixteen-byte blocks from its start, each compared once with `=` and the two
-    /// line-end bytes: the block that holds the `=` also gives the end of a short value, where
-    /// looking for the key's end and then for the value's end loaded and compared the bytes
-    /// after the `=` a second time.
+    /// [`Lexer::next_plain_entry`]'s look at a line that starts at least sixteen bytes before
+    /// the end of the text (`None` otherwise, or when a block of the line would reach past the
+    /// end: then [`Lexer::plain_line_bytes`] reads it). The line is read in sixteen-byte blocks
+    /// from its start. The first is compared once with `=`, the two line-end bytes and the
+    /// printable range ([`BlockMasks`]): a line that ends in it (seven in ten) is decided on
+    /// its masks without looking at a byte again (where its key and value end, whether the
+    /// bytes at either end of them need trimming, which line end it has). For a longer line
+    /// the next blocks are only compared with the line ends, and [`Lexer::plain_line_at`]
+    /// looks at the bytes at the ends of its key and value.
     #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
     #[inline(always)]
-    fn plain_entry_in_blocks(&mut self) -> Option<Option<PlainEntry<'a>>> {
-        use std::arch::x86_64::*;
+    fn plain_line_in_blocks(&self) -> Option<Option<PlainLine>> {
         let input = self.rest.as_bytes();
-        // The masks of `=` and of line-end bytes in the block at `at` (bit i: byte at + i).
-        let masks = |at: usize| -> Option<(u32, u32)> {
-            let block: &[u8; 16] = input.get(at..at + 16)?.try_into().ok()?;
-            // SAFETY: the intrinsics need SSE2, which every x86_64 processor has and the cfg
-            // above checks is enabled; the load reads the sixteen bytes of `block`, which it
-            // borrows (an unaligned load, as `_mm_loadu_si128` allows).
-            Some(unsafe {
-                let v = _mm_loadu_si128(block.as_ptr().cast());
-                let eq = _mm_movemask_epi8(_mm_cmpeq_epi8(v, _mm_set1_epi8(b'=' as i8))) as u32;
-                let ends = _mm_or_si128(
-                    _mm_cmpeq_epi8(v, _mm_set1_epi8(b'\n' as i8)),
-                    _mm_cmpeq_epi8(v, _mm_set1_epi8(b'\r' as i8)),
-                );
-                (eq, _mm_movemask_epi8(ends) as u32)
-            })
-        };
+        let m = BlockMasks::of(input.first_chunk::<16>()?);
+        let stop = m.eq | m.ends();
+        if stop == 0 {
+            // A key of sixteen bytes or more.
+            return self.plain_line_long_key();
+        }
         // The key ends at the first `=` or line end (the line is an entry only if it is `=`),
         // the value at the first line end after it.
-        let mut at = 0;
-        let key_len = loop {
-            let (eq, ends) = masks(at)?;
-            let stop = eq | ends;
-            if stop != 0 {
-                let i = stop.trailing_zeros();
-                if eq & (1 << i) == 0 {
-                    return Some(None);
-                }
-                let ends_after = ends & !((2u32 << i) - 1);
-                if ends_after != 0 {
-                    break (at + i as usize, at + ends_after.trailing_zeros() as usize);
-                }
-                let key_len = at + i as usize;
-                at += 16;
-                break loop {
-                    let (_, ends) = masks(at)?;
-                    if ends != 0 {
-                        break (key_len, at + ends.trailing_zeros() as usize);
-                    }
-                    at += 16;
-                };
+        let i = stop.trailing_zeros();
+        if m.eq & (1 << i) == 0 {
+            return Some(None);
+        }
+        let ends_after = m.ends() & (!1u32 << i);
+        if ends_after == 0 {
+            // The value runs into the next block (three lines in ten).
+            return self.plain_line_from(16, i as usize);
+        }
+        let e = ends_after.trailing_zeros();
+        // The key's last byte and the value's first and last are printable and not the space;
+        // when the value is empty, the bits looked at are the `=` and the line end, neither of
+        // them `blank`. (The key is not empty: `PLAIN_FIRST` has no `=`; `i < e < 16`.)
+        let ends_of_parts = (1u32 << i) >> 1 | 1 << (i + 1) | 1 << (e - 1);
+        if m.blank & ends_of_parts != 0 {
+            return Some(None);
+        }
+        let ending = if m.lf >> e & 1 != 0 {
+            1
+        } else if e < 15 {
+            // A `\r`, followed by `\n` or (a lone `\r`) not.
+            if m.lf >> (e + 1) & 1 == 0 {
+                return Some(None);
             }
-            at += 16;
+            2
+        } else if input.get(16) == Some(&b'\n') {
+            2
+        } else {
+            return Some(None);
         };
-        let (key_len, line_len) = key_len;
-        Some(self.plain_entry_at(key_len, line_len))
+        Some(Some(PlainLine { key_len: i as usize, line_len: e as usize, ending }))
     }
 
-    /// The plain entry of the line at the start of what is left, whose key is `key_len` bytes
-    /// long (an `=` follows) and whose content ends at `line_len`, at a line-end byte or the end
-    /// of the text; `None` if it is no plain entry. Both scans end here.
+    /// The end of [`Lexer::plain_line_in_blocks`] for a line whose key ends at `key_len`,
+    /// and whose first `at` bytes (a multiple of sixteen) hold no line end: looks for the line
+    /// end in the blocks from `at` on.
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
     #[inline(always)]
-    fn plain_entry_at(&mut self, key_len: usize, line_len: usize) -> Option<PlainEntry<'a>> {
+    fn plain_line_from(&self, mut at: usize, key_len: usize) -> Option<Option<PlainLine>> {
+        let input = self.rest.as_bytes();
+        loop {
+            let ends = BlockMasks::line_ends(input.get(at..at + 16)?.try_into().ok()?);
+            if ends != 0 {
+                return Some(self.plain_line_at(key_len, at + ends.trailing_zeros() as usize));
+            }
+            at += 16;
+        }
+    }
+
+    /// [`Lexer::plain_line_in_blocks`] for a line whose first sixteen bytes hold no `=` and no
+    /// line end (a long key, or no entry at all; rare).
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+    #[inline(never)]
+    fn plain_line_long_key(&self) -> Option<Option<PlainLine>> {
+        let input = self.rest.as_bytes();
+        let mut at = 16;
+        loop {
+            let m = BlockMasks::of(input.get(at..at + 16)?.try_into().ok()?);
+            let stop = m.eq | m.ends();
+            if stop != 0 {
+                let i = stop.trailing_zeros();
+                if m.eq & (1 << i) == 0 {
+                    return Some(None);
+                }
+                let ends_after = m.ends() & (!1u32 << i);
+                if ends_after != 0 {
+                    return Some(self.plain_line_at(at + i as usize, at + ends_after.trailing_zeros() as usize));
+                }
+                return self.plain_line_from(at + 16, at + i as usize);
+            }
+            at += 16;
+        }
+    }
+
+    /// The shape of the line at the start of what is left if it is a plain entry, given that
+    /// its key is `key_len` bytes long (if an `=` follows) and its content ends at `line_len`,
+    /// at a line-end byte or the end of the text. Every scan but the blocks' ends here.
+    #[inline(always)]
+    fn plain_line_at(&self, key_len: usize, line_len: usize) -> Option<PlainLine> {
         let input = self.rest.as_bytes();
         if input.get(key_len) != Some(&b'=') || !is_graphic(*input.get(key_len.checked_sub(1)?)?) {
             return None;
@@ -312,22 +355,29 @@ impl<'a> Lexer<'a> {
         {
             return None;
         }
-        let (ending, newline) = match input.get(line_len..)? {
-            [b'\n', ..] => (1, true),
-            [b'\r', b'\n', ..] => (2, true),
-            [] => (0, false),
+        let ending = match input.get(line_len..)? {
+            [b'\n', ..] => 1,
+            [b'\r', b'\n', ..] => 2,
+            [] => 0,
             // A lone `\r`: the general path keeps count of columns after it.
             _ => return None,
         };
-        let key = input.get(..key_len)?;
-        let value = value_part;
-        let next = line_len + ending;
-        let after = input.get(next..)?;
+        Some(PlainLine { key_len, line_len, ending })
+    }
+
+    /// Moves past the plain entry at the start of what is left, of the shape `line`, and gives
+    /// it back.
+    #[inline(always)]
+    fn cut_plain_entry(&mut self, line: PlainLine) -> PlainEntry<'a> {
+        let PlainLine { key_len, line_len, ending } = line;
+        let input = self.rest.as_bytes();
+        // (`PlainLine` promises `key_len < line_len <= line_len + ending <= input.len()`.)
+        let (key, value, after) = (&input[..key_len], &input[key_len + 1..line_len], &input[line_len + ending..]);
         // SAFETY: `input` is the bytes of the `str` `self.rest`, and each slice is cut where an
-        // ASCII byte starts (the `=` at `key_len`, checked above, the byte after it, the line end at `line_len`, the
-        // byte after the line end) or at an end of `input`: every cut is a char boundary, so
-        // each slice is UTF-8. (`str` slicing checked the boundaries again, byte by byte, on the
-        // commonest line of every file.)
+        // ASCII byte starts (the `=` at `key_len`, the byte after it, the line end at
+        // `line_len`, the byte after the line end: what a `PlainLine` promises) or at an end of
+        // `input`: every cut is a char boundary, so each slice is UTF-8. (`str` slicing checked
+        // the boundaries again, byte by byte, on the commonest line of every file.)
         let (key, value, after) = unsafe {
             (
                 std::str::from_utf8_unchecked(key),
@@ -337,21 +387,33 @@ impl<'a> Lexer<'a> {
         };
         let start = offset(self.text.as_bytes(), input) as u32;
         self.rest = after;
-        Some(PlainEntry { key, value, start, end: offset(self.text.as_bytes(), after.as_bytes()) as u32, newline })
+        let end = offset(self.text.as_bytes(), after.as_bytes()) as u32;
+        PlainEntry { key, value, start, end, newline: ending != 0 }
     }
 
-    /// [`Lexer::next_plain_entry`] on any line, the last one included (scanning for the key's
-    /// end, then for the value's).
+    /// [`Lexer::next_plain_entry`]'s look at any line, the last one included (scanning for the
+    /// key's end, then for the value's).
     #[inline(always)]
-    fn plain_entry_bytes(&mut self) -> Option<PlainEntry<'a>> {
+    fn plain_line_bytes(&self) -> Option<PlainLine> {
         let input = self.rest.as_bytes();
         let key_len = prefix_without(input, [b'=', b'\n', b'\r']);
         if input.get(key_len) != Some(&b'=') {
             return None;
         }
         let line_len = key_len + 1 + prefix_without(&input[key_len + 1..], [b'\n', b'\r']);
-        self.plain_entry_at(key_len, line_len)
+        self.plain_line_at(key_len, line_len)
     }
+}
+
+/// Where a plain entry's parts end, as the lexer's look at its line found them: the key is
+/// `key_len` bytes long and an `=` follows it; the content ends at `line_len`, where a line
+/// end of `ending` bytes (`\n` or `\r\n`; none at the end of the text) starts. Made only where
+/// those bytes were checked to be there: `Lexer::cut_plain_entry` relies on it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct PlainLine {
+    key_len: usize,
+    line_len: usize,
+    ending: usize,
 }
 
 /// The bytes a line read by [`Lexer::next_plain_entry`] may start with: `0` to `9` and `A` to
@@ -370,6 +432,67 @@ static PLAIN_FIRST: [bool; 256] = {
 #[inline(always)]
 fn is_graphic(b: u8) -> bool {
     (0x21..=0x7E).contains(&b)
+}
+
+/// Which bytes of a sixteen-byte block (bit n: byte n) are `=`, `\n`, `\r`, and neither
+/// printable ASCII other than the space ([`is_graphic`]) nor a line end (`blank`: white space,
+/// control bytes, non-ASCII).
+#[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct BlockMasks {
+    eq: u32,
+    lf: u32,
+    cr: u32,
+    blank: u32,
+}
+
+#[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+impl BlockMasks {
+    /// The masks of `block` (SSE2: one load, a compare for each of `=`, `\n`, `\r`, a range
+    /// check, four masks).
+    #[inline(always)]
+    fn of(block: &[u8; 16]) -> Self {
+        use std::arch::x86_64::*;
+        // SAFETY: the intrinsics need SSE2, which every x86_64 processor has and the cfg
+        // above checks is enabled; the load reads the sixteen bytes of `block`, which it
+        // borrows (an unaligned load, as `_mm_loadu_si128` allows).
+        unsafe {
+            let v = _mm_loadu_si128(block.as_ptr().cast());
+            let mask = |m: __m128i| _mm_movemask_epi8(m) as u32;
+            let lf = _mm_cmpeq_epi8(v, _mm_set1_epi8(b'\n' as i8));
+            let cr = _mm_cmpeq_epi8(v, _mm_set1_epi8(b'\r' as i8));
+            // Signed compares: 0x21..=0x7F are above 0x20, bytes from 0x80 up are negative.
+            let graphic =
+                _mm_andnot_si128(_mm_cmpeq_epi8(v, _mm_set1_epi8(0x7F)), _mm_cmpgt_epi8(v, _mm_set1_epi8(0x20)));
+            BlockMasks {
+                eq: mask(_mm_cmpeq_epi8(v, _mm_set1_epi8(b'=' as i8))),
+                lf: mask(lf),
+                cr: mask(cr),
+                blank: mask(_mm_or_si128(_mm_or_si128(graphic, lf), cr)) ^ 0xFFFF,
+            }
+        }
+    }
+
+    /// The line ends, `\n` or `\r`.
+    #[inline(always)]
+    fn ends(self) -> u32 {
+        self.lf | self.cr
+    }
+
+    /// The line ends of `block` alone (SSE2: one load, two compares, one mask).
+    #[inline(always)]
+    fn line_ends(block: &[u8; 16]) -> u32 {
+        use std::arch::x86_64::*;
+        // SAFETY: as in `BlockMasks::of`.
+        unsafe {
+            let v = _mm_loadu_si128(block.as_ptr().cast());
+            let ends = _mm_or_si128(
+                _mm_cmpeq_epi8(v, _mm_set1_epi8(b'\n' as i8)),
+                _mm_cmpeq_epi8(v, _mm_set1_epi8(b'\r' as i8)),
+            );
+            _mm_movemask_epi8(ends) as u32
+        }
+    }
 }
 
 type In<'a> = &'a [u8];
@@ -397,7 +520,7 @@ const fn eq_mask(w: u64, t: u8) -> u64 {
 /// SSE2 (one compare per byte of `set`, one mask); the last bytes, and all of them elsewhere,
 /// eight at a time in a `u64`.
 #[inline(always)]
-fn prefix_without<const N: usize>(b: In<'_>, set: [u8; N]) -> usize {
+pub(crate) fn prefix_without<const N: usize>(b: In<'_>, set: [u8; N]) -> usize {
     let mut i = 0;
     // Most keys and values are shorter than sixteen bytes: one block finds their end, where
     // eight-byte words took two or three rounds (corpus pass: 61.2 -> 58.7 M instructions).
@@ -885,6 +1008,48 @@ mod tests {
             let expect = b.is_ascii_digit() || (b'A'..=b'~').contains(&b) && b != b'[';
             if let Ok(text) = std::str::from_utf8(&line) {
                 assert_eq!(check_plain_entries(text), expect as usize, "{text:?}");
+            }
+        }
+    }
+
+    /// Lines whose key and value end at every position around the ends of the first and second
+    /// sixteen-byte blocks, with each kind of byte in turn at the end of the key, the start of
+    /// the value and its end (bytes that need trimming and bytes that do not), and each line
+    /// end, far from the end of the text (read in blocks) and at it (byte by byte): the fast
+    /// path reads each as the general path does, and reads all those that need no trimming.
+    #[test]
+    fn plain_entries_across_block_ends() {
+        let bytes = ['v', ' ', '\t', '\x0B', '\x7F', '~', '!', '\u{e9}', '\u{a0}', '=', '[', '#'];
+        for key_len in [1, 2, 13, 14, 15, 16, 17, 18, 30, 31, 32] {
+            for value_len in [0, 1, 2, 3, 13, 14, 15, 16, 17, 29, 30, 31, 32, 33] {
+                for (which, &b) in (0..3).flat_map(|w| bytes.iter().map(move |b| (w, b))) {
+                    let (mut key_end, mut first, mut last) = ('K', 'v', 'w');
+                    *[&mut key_end, &mut first, &mut last][which] = b;
+                    let mut key: String = "K".repeat(key_len - 1);
+                    key.push(key_end);
+                    let mut value = String::new();
+                    if value_len > 0 {
+                        value.push(first);
+                    }
+                    if value_len > 1 {
+                        value.push_str(&"w".repeat(value_len - 2));
+                        value.push(last);
+                    }
+                    let plain = [key_end, first, last].iter().all(|&c| c.is_ascii_graphic())
+                        && !value.contains('=')
+                        && (value_len > 0 || which != 1)
+                        && (value_len > 1 || which != 2)
+                        && PLAIN_FIRST[key.as_bytes()[0] as usize];
+                    for ending in ["\n", "\r\n", "\r", "\r\r\n", ""] {
+                        let line = format!("{key}={value}{ending}");
+                        let read = check_plain_entries(&format!("{line}Pad=1\nPad=2\nPad=3\nPad=4\nPad=5\n"));
+                        if plain && (ending == "\n" || ending == "\r\n") && !key.contains('=') {
+                            assert_eq!(read, 6, "{line:?}");
+                        }
+                        check_plain_entries(&line);
+                        check_plain_entries(&format!("A=1\n{line}"));
+                    }
+                }
             }
         }
     }

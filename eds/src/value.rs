@@ -268,6 +268,15 @@ pub(crate) fn parse_plain_uint(s: &str) -> Option<(u64, Radix)> {
     }
 }
 
+/// The value of four hex digits (either case), or `None` if a byte is none: what
+/// [`parse_plain_uint`] reads after `0x` (an object index, a type code), with no loop and one
+/// check of the four look-ups OR'ed together (a byte that is no digit makes them 0xFF).
+#[inline]
+pub(crate) fn hex4_value(digits: [u8; 4]) -> Option<u16> {
+    let [a, b, c, d] = digits.map(|b| HEX_VALUE[b as usize]);
+    ((a | b | c | d) <= 0xF).then_some((a as u16) << 12 | (b as u16) << 8 | (c as u16) << 4 | d as u16)
+}
+
 /// Each byte's value as a hex digit (either case), `0xFF` for a byte that is none: one look-up
 /// per digit of the plain hex numbers that most values and types are, where [`digit`] takes a
 /// comparison per range.
@@ -740,6 +749,28 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    /// Four hex digits read as `parse_plain_uint` reads them after `0x`, for every byte at
+    /// every place.
+    #[test]
+    fn hex4_is_plain_hex() {
+        for at in 0..4 {
+            for b in 0..=u8::MAX {
+                for fill in [b'0', b'9', b'a', b'F'] {
+                    let mut digits = [fill; 4];
+                    digits[at] = b;
+                    let mut text = b"0x".to_vec();
+                    text.extend(digits);
+                    let plain = std::str::from_utf8(&text).ok().and_then(parse_plain_uint).map(|(v, _)| v as u16);
+                    assert_eq!(hex4_value(digits), plain, "{text:?}");
+                }
+            }
+        }
+        for v in 0..=u16::MAX {
+            assert_eq!(hex4_value(format!("{v:04X}").into_bytes().try_into().unwrap()), Some(v));
+            assert_eq!(hex4_value(format!("{v:04x}").into_bytes().try_into().unwrap()), Some(v));
         }
     }
 

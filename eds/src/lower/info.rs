@@ -3,7 +3,7 @@
 use super::sections::{KeySet, Keys, Kind, Kv, Section, Sections, match_keys, report_duplicate};
 use super::{Crumbs, Ctx, FastMap};
 use crate::codes;
-use crate::model::{Category, Commissioning, DeviceInfo, ExtraSection, FileInfo, Index, Model, Role};
+use crate::model::{Category, Commissioning, DeviceInfo, ExtraSection, FileInfo, Model, Radix};
 use crate::source::Span;
 use crate::value::parse_int;
 
@@ -16,14 +16,20 @@ fn owned(kv: &Kv<'_>) -> (String, String) {
 
 /// Reads an unsigned number for an information key; reports E0503 and returns `None` when it
 /// cannot be read or does not fit `max`.
+#[inline]
 fn info_uint(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u64> {
     // A plain number in range, as most are, needs neither the comment split nor the general
-    // reader (which reads it as the same number).
+    // reader (which reads it as the same number), nor a call.
     if let Some((n, _)) = crate::value::parse_plain_uint(kv.value)
         && n <= max
     {
         return Some(n);
     }
+    info_uint_general(cx, kv, max, section)
+}
+
+/// [`info_uint`] for a value that is not a plain number in range.
+fn info_uint_general(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u64> {
     let v = kv.value.split(';').next().unwrap_or("").trim();
     if v.is_empty() {
         let d = cx.emit(
@@ -58,13 +64,18 @@ fn info_uint(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u
     }
 }
 
+#[inline]
 fn info_bool(cx: &mut Ctx<'_>, kv: &Kv<'_>, section: &str) -> Option<bool> {
-    // (As nearly every file writes them: no comment to split off, nothing to trim.)
-    match kv.value {
-        "0" => return Some(false),
-        "1" => return Some(true),
-        _ => {}
+    // (As nearly every file writes them: no comment to split off, nothing to trim, no call.)
+    match kv.value.as_bytes() {
+        b"0" => Some(false),
+        b"1" => Some(true),
+        _ => info_bool_general(cx, kv, section),
     }
+}
+
+/// [`info_bool`] for a value other than a plain `0` or `1`.
+fn info_bool_general(cx: &mut Ctx<'_>, kv: &Kv<'_>, section: &str) -> Option<bool> {
     let v = kv.value.split(';').next().unwrap_or("").trim();
     match v {
         "0" => Some(false),
@@ -88,6 +99,37 @@ fn info_bool(cx: &mut Ctx<'_>, kv: &Kv<'_>, section: &str) -> Option<bool> {
     }
 }
 
+/// The data type a `DummyNNNN` key names: `Dummy` in any case and four hex digits.
+#[inline]
+fn dummy_type(key: &str) -> Option<u16> {
+    match *key.as_bytes() {
+        [d, u, m1, m2, y, a, b, c, e] if [d, u, m1, m2, y].eq_ignore_ascii_case(b"Dummy") => {
+            crate::value::hex4_value([a, b, c, e])
+        }
+        _ => None,
+    }
+}
+
+/// The rate of a `BaudRate_<kbit/s>` key as CiA 306 writes it (`BaudRate_` and one to four
+/// digits without a leading zero, or `0`), read without the general number parser; `None` for
+/// any other key (which the general rules then look at).
+#[inline]
+fn canonical_baud_rate(key: &str) -> Option<u16> {
+    let digits = key.strip_prefix("BaudRate_")?.as_bytes();
+    if digits.is_empty() || digits.len() > 4 || (digits[0] == b'0' && digits.len() > 1) {
+        return None;
+    }
+    let mut v = 0u16;
+    for &c in digits {
+        let d = c.wrapping_sub(b'0');
+        if d > 9 {
+            return None;
+        }
+        v = v * 10 + d as u16;
+    }
+    Some(v)
+}
+
 fn missing_keys<const N: usize>(
     cx: &mut Ctx<'_>,
     sec: &Section<'_>,
@@ -101,11 +143,16 @@ fn missing_keys<const N: usize>(
         .filter(|r| known.names.iter().position(|k| k == r).is_none_or(|i| keys.get(i).is_none()))
         .collect();
     if !missing.is_empty() {
-        let d = cx.emit(
-            codes::E0505,
-            Some(sec.name_span),
-            format!("[{}] lacks {}", sec.name, missing.iter().map(|m| format!("`{m}`")).collect::<Vec<_>>().join(", ")),
-        );
+        let d = cx.emit(codes::E0505, Some(sec.name_span), {
+            // "[DeviceInfo] lacks `A`, `B`", without a formatter.
+            let mut message = super::cat(["[", sec.name, "] lacks "]);
+            for (i, m) in missing.iter().enumerate() {
+                message.push_str(if i == 0 { "`" } else { ", `" });
+                message.push_str(m);
+                message.push('`');
+            }
+            message
+        });
         d.hint = Some("CiA 306 requires these keys".into());
     }
 }
@@ -187,9 +234,9 @@ fn lower_file_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> FileInfo {
             let d = cx.emit(
                 codes::E0503,
                 Some(kv.value_span(&cx.src.text)),
-                format!("[FileInfo] {}=`{}` is not in the CiA 306 form {form}", kv.key, kv.value),
+                super::cat(["[FileInfo] ", kv.key, "=`", kv.value, "` is not in the CiA 306 form ", form]),
             );
-            d.hint = Some(format!("write it as {form}").into());
+            d.hint = Some(super::cat(["write it as ", form]).into());
         }
     }
     if let Some(kv) = keys.get(3) {
@@ -300,11 +347,14 @@ fn lower_device_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> DeviceInfo {
     }
     for kv in &keys.unknown {
         // BaudRate_<kbit/s>: any rate is read; the CiA 306 ones are not reported.
-        let rate = kv
-            .key
-            .get(..9)
-            .filter(|p| p.eq_ignore_ascii_case("BaudRate_"))
-            .and_then(|_| kv.key[9..].parse::<u16>().ok());
+        let rate = match canonical_baud_rate(kv.key) {
+            Some(r) => Some(r),
+            None => kv
+                .key
+                .get(..9)
+                .filter(|p| p.eq_ignore_ascii_case("BaudRate_"))
+                .and_then(|_| kv.key[9..].parse::<u16>().ok()),
+        };
         match rate {
             Some(r) => {
                 // As CiA 306 writes it: `BaudRate_` and the number without a sign or leading
@@ -432,19 +482,14 @@ fn lower_dummy_usage(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
     const NO_KEYS: KeySet<0> = KeySet::new([]);
     let keys = match_keys(cx, sec, &NO_KEYS, Crumbs::default(), false);
     for kv in &keys.unknown {
-        let ty = kv.key.get(..5).filter(|p| p.eq_ignore_ascii_case("Dummy")).and_then(|_| {
-            let digits = &kv.key[5..];
-            (digits.len() == 4 && digits.bytes().all(|b| b.is_ascii_hexdigit()))
-                .then(|| u16::from_str_radix(digits, 16).ok())
-                .flatten()
-        });
+        let ty = dummy_type(kv.key);
         match ty {
             Some(t) => {
                 if !(1..=7).contains(&t) {
                     let d = cx.emit(
                         codes::E0503,
                         Some(kv.key_span(&cx.src.text)),
-                        format!("`{}` names no basic data type (0001..0007)", kv.key),
+                        super::cat(["`", kv.key, "` names no basic data type (0001..0007)"]),
                     );
                     d.hint = Some("dummy mapping exists for the data types 0x0001..=0x0007".into());
                 }
@@ -620,11 +665,14 @@ pub(crate) fn list_name(c: Category) -> &'static str {
     }
 }
 
-/// The list an index belongs in by CiA 306.
+/// The list an index belongs in by CiA 306: the mandatory objects (device type, error
+/// register, identity), the manufacturer-specific area, the rest optional. (Decided on the
+/// number, as `Index::role` places these; `expected_category_follows_the_roles` holds the two
+/// together for every index.)
 pub(crate) fn expected_category(index: u16) -> Category {
-    match Index(index).role() {
-        Role::DeviceType | Role::ErrorRegister | Role::Identity => Category::Mandatory,
-        Role::ManufacturerSpecific => Category::Manufacturer,
+    match index {
+        0x1000 | 0x1001 | 0x1018 => Category::Mandatory,
+        0x2000..=0x5FFF => Category::Manufacturer,
         _ => Category::Optional,
     }
 }
@@ -645,9 +693,12 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
         // A constant, so that the key set is built when compiling, not on every call.
         const SUPPORTED_OBJECTS: KeySet<1> = KeySet::new(["SupportedObjects"]);
         let keys = match_keys(cx, sec, &SUPPORTED_OBJECTS, Crumbs::default(), false);
-        let mut numbers: Vec<u32> = Vec::new();
+        // The entries' numbers, as long as they are 1, 2, 3, ... in order (as lists write
+        // them) only counted; from the first out of order on, collected.
+        let mut count = 0u32;
+        let mut numbers: Option<Vec<u32>> = None;
         for kv in &keys.unknown {
-            let Ok(n) = kv.key.parse::<u32>() else {
+            let Some(n) = list_number(kv.key) else {
                 let d = cx.emit(
                     codes::E0404,
                     Some(kv.key_span(&cx.src.text)),
@@ -658,7 +709,14 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
             };
             // The plain forms (`0x1000`) need neither the general number reader nor its list of
             // remarks (which this list does not report).
-            let parsed = match crate::value::parse_plain_uint(kv.value) {
+            // `0x1000`, four hex digits, above all.
+            let plain = match kv.value.as_bytes() {
+                &[b'0', b'x' | b'X', a, b, c, d] => {
+                    crate::value::hex4_value([a, b, c, d]).map(|v| (v as u64, Radix::Hex))
+                }
+                _ => None,
+            };
+            let parsed = match plain.or_else(|| crate::value::parse_plain_uint(kv.value)) {
                 Some((v, radix)) => Ok(crate::value::ParsedInt { value: v as i128, radix, negative: false }),
                 None => parse_int(kv.value, &mut Vec::new()),
             };
@@ -687,7 +745,12 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                     continue;
                 }
             };
-            numbers.push(n);
+            count += 1;
+            match &mut numbers {
+                None if n == count => {}
+                None => numbers = Some((1..count).chain([n]).collect()),
+                Some(numbers) => numbers.push(n),
+            }
             // One look-up for the repeat check and the insertion.
             let vacant = match lists.listed.entry(index) {
                 std::collections::hash_map::Entry::Vacant(e) => e,
@@ -718,13 +781,21 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
             }
             vacant.insert((cat, kv.value_span(&cx.src.text)));
         }
-        numbers.sort_unstable();
-        let consecutive = numbers.iter().enumerate().all(|(i, &n)| n == i as u32 + 1);
+        let numbers = match numbers {
+            Some(mut numbers) => {
+                numbers.sort_unstable();
+                numbers
+            }
+            None => Vec::new(),
+        };
+        // (Counted in order: 1..=count.)
+        let consecutive = numbers.is_empty() || numbers.iter().enumerate().all(|(i, &n)| n == i as u32 + 1);
+        let listed_count = count as usize;
         match keys.get(0) {
             Some(kv) => {
                 let mut q = Vec::new();
                 match parse_int(kv.value, &mut q) {
-                    Ok(p) if p.value == numbers.len() as i128 && consecutive => {}
+                    Ok(p) if p.value == listed_count as i128 && consecutive => {}
                     Ok(p) => {
                         let d = cx.emit(
                             codes::E0403,
@@ -732,7 +803,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                             format!(
                                 "[{name}] says SupportedObjects={} but lists {} objects{}",
                                 p.value,
-                                numbers.len(),
+                                listed_count,
                                 if consecutive {
                                     String::new()
                                 } else {
@@ -741,7 +812,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                             ),
                         );
                         d.hint = Some(
-                            format!("number the entries 1..{n} and set SupportedObjects={n}", n = numbers.len()).into(),
+                            format!("number the entries 1..{n} and set SupportedObjects={n}", n = listed_count).into(),
                         );
                     }
                     Err(_) => {
@@ -755,11 +826,30 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
             }
             None => {
                 let d = cx.emit(codes::E0403, Some(sec.name_span), format!("[{name}] lacks `SupportedObjects`"));
-                d.hint = Some(format!("add `SupportedObjects={}`", numbers.len()).into());
+                d.hint = Some(format!("add `SupportedObjects={}`", listed_count).into());
             }
         }
     }
     lists
+}
+
+/// The number of an object list's entry key, as `str::parse::<u32>` reads it (digits, with an
+/// optional `+`); the commonest keys, up to nine digits, without the general parser.
+#[inline]
+fn list_number(key: &str) -> Option<u32> {
+    let b = key.as_bytes();
+    if b.is_empty() || b.len() > 9 {
+        return key.parse().ok();
+    }
+    let mut v = 0u32;
+    for &c in b {
+        let d = c.wrapping_sub(b'0');
+        if d > 9 {
+            return key.parse().ok();
+        }
+        v = v * 10 + d as u32;
+    }
+    Some(v)
 }
 
 fn number_ranges(ns: &[u32]) -> String {
@@ -779,6 +869,7 @@ fn number_ranges(ns: &[u32]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::{Index, Role};
 
     #[test]
     fn dates_and_times() {
@@ -788,6 +879,111 @@ mod tests {
         assert!(is_time("12:59pm"));
         assert!(!is_time("20:31PM"));
         assert!(!is_time("10:3AM"));
+    }
+
+    #[test]
+    fn expected_category_follows_the_roles() {
+        for i in 0..=u16::MAX {
+            let by_role = match Index(i).role() {
+                Role::DeviceType | Role::ErrorRegister | Role::Identity => Category::Mandatory,
+                Role::ManufacturerSpecific => Category::Manufacturer,
+                _ => Category::Optional,
+            };
+            assert_eq!(expected_category(i), by_role, "{i:#06x}");
+        }
+    }
+
+    #[test]
+    fn list_numbers_read_as_parse_does() {
+        for key in [
+            "",
+            "0",
+            "1",
+            "01",
+            "+1",
+            "-1",
+            "+",
+            "1+",
+            " 1",
+            "1 ",
+            "a",
+            "123456789",
+            "999999999",
+            "1000000000",
+            "4294967295",
+            "4294967296",
+            "04294967295",
+            "+4294967295",
+            "0000000000001",
+            "1\u{e9}",
+            "\u{661}",
+        ] {
+            assert_eq!(list_number(key), key.parse::<u32>().ok(), "{key:?}");
+        }
+        for n in (0..100_000u32).chain([u32::MAX - 1, u32::MAX, 999_999_999, 1_000_000_000]) {
+            assert_eq!(list_number(&n.to_string()), Some(n));
+            assert_eq!(list_number(&format!("{n:012}")), Some(n));
+        }
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn list_numbers_agree_with_parse(key in "[+-]?[0-9a ]{0,12}") {
+            proptest::prop_assert_eq!(list_number(&key), key.parse::<u32>().ok());
+        }
+    }
+
+    /// The canonical form is read as the general rules read it, and only it.
+    #[test]
+    fn baud_rates_read_as_the_general_rules_read_them() {
+        let general = |key: &str| {
+            key.get(..9).filter(|p| p.eq_ignore_ascii_case("BaudRate_")).and_then(|_| key[9..].parse::<u16>().ok())
+        };
+        let mut keys: Vec<String> = (0..=10_000u32).map(|n| format!("BaudRate_{n}")).collect();
+        keys.extend(
+            ["BaudRate_", "BaudRate_01", "BaudRate_+5", "BaudRate_-5", "baudrate_10", "BaudRate_1 ", "BaudRate_65535"]
+                .map(String::from),
+        );
+        keys.extend(
+            ["BaudRate_65536", "BaudRate_1a", "BaudRate_\u{661}", "Baudrate_10", "BaudRate10", "BaudRate_0000"]
+                .map(String::from),
+        );
+        for key in &keys {
+            if let Some(r) = canonical_baud_rate(key) {
+                assert_eq!(Some(r), general(key), "{key:?}");
+                assert_eq!(format!("BaudRate_{r}"), *key, "{key:?}");
+            }
+        }
+        // Every rate up to 9999 kbit/s written as CiA 306 writes it takes the short way.
+        for n in 0..=9999u16 {
+            assert_eq!(canonical_baud_rate(&format!("BaudRate_{n}")), Some(n));
+        }
+    }
+
+    /// `dummy_type` reads what `str` slicing and `u16::from_str_radix` read.
+    #[test]
+    fn dummy_types_read_as_the_general_rules_read_them() {
+        let general = |key: &str| {
+            key.get(..5).filter(|p| p.eq_ignore_ascii_case("Dummy")).and_then(|_| {
+                let digits = &key[5..];
+                (digits.len() == 4 && digits.bytes().all(|b| b.is_ascii_hexdigit()))
+                    .then(|| u16::from_str_radix(digits, 16).ok())
+                    .flatten()
+            })
+        };
+        let mut keys: Vec<String> = (0..=0xFFFFu32).map(|n| format!("Dummy{n:04X}")).collect();
+        keys.extend((0..0x100u32).map(|n| format!("dUMMY{n:04x}")));
+        for b in (0..0x80u8).map(|b| (b as char).to_string()).chain(["\u{e9}".into(), "\u{661}".into()]) {
+            for at in 0..9 {
+                let mut key: Vec<String> = "Dummy0007".chars().map(String::from).collect();
+                key[at] = b.clone();
+                keys.push(key.concat());
+            }
+        }
+        keys.extend(["", "Dummy", "Dummy007", "Dummy00007", "Dummy+007", "Dummy\u{e9}07"].map(String::from));
+        for key in &keys {
+            assert_eq!(dummy_type(key), general(key), "{key:?}");
+        }
     }
 
     #[test]

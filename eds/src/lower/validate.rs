@@ -35,12 +35,13 @@ fn object_lists(secs: &Sections<'_>, lists: &Lists, model: &Model, cx: &mut Ctx<
         .collect();
     missing.sort_by_key(|&(_, _, span)| span.start);
     for (index, cat, span) in missing {
+        let hex = super::hex4(index);
         let d = cx.emit(
             codes::E0401,
             Some(span),
-            format!("[{}] lists 0x{index:04X}, but there is no section [{index:04X}]", list_name(cat)),
+            super::cat(["[", list_name(cat), "] lists 0x", &hex, ", but there is no section [", &hex, "]"]),
         );
-        d.hint = Some(format!("add the section [{index:04X}] or remove the list entry").into());
+        d.hint = Some(super::cat(["add the section [", &hex, "] or remove the list entry"]).into());
     }
     for obj in model.objects.values() {
         if !lists.listed.contains_key(&obj.index.0) {
@@ -81,7 +82,8 @@ fn mandatory(model: &Model, cx: &mut Ctx<'_>) {
             d.hint = Some("CiA 301 requires 0x1000, 0x1001 and 0x1018 in every device".into());
             continue;
         };
-        let ctx = vec![object_context(index, &obj.name)];
+        // (Made only for a diagnostic: most files have all three objects as CiA 301 says.)
+        let ctx = || vec![object_context(index, &obj.name)];
         if !types.contains(&obj.object_type) {
             let d = cx.emit(
                 codes::E0507,
@@ -92,13 +94,13 @@ fn mandatory(model: &Model, cx: &mut Ctx<'_>) {
                     otype(types[0])
                 ),
             );
-            d.context = ctx.clone();
+            d.context = ctx();
             continue;
         }
         if let Some(e) = obj.sub(sub)
             && e.data_type != dt
         {
-            let mut c = ctx.clone();
+            let mut c = ctx();
             if sub != 0 {
                 c.push(sub_context(sub, &e.name));
             }
@@ -141,23 +143,29 @@ fn effective(e: &Entry) -> Option<&Value> {
 fn pdos(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
     let mut rx_comm = 0u32;
     let mut tx_comm = 0u32;
-    for obj in model.objects.values() {
+    // The PDO objects (communication and mapping) are 0x1400..=0x1BFF: only those are looked at,
+    // and which of them the file has is a bit each (on the stack), for `pair`'s look-ups.
+    let mut present = PdoSet::default();
+    for (index, _) in model.objects.range(PDO_OBJECTS) {
+        present.insert(index.0);
+    }
+    for (_, obj) in model.objects.range(PDO_OBJECTS) {
         let (is_rpdo, n) = match obj.index.role() {
             Role::RpdoCommunication(_) => {
                 rx_comm += 1;
-                pair(model, obj, obj.index.0 + 0x200, "mapping", cx);
+                pair(&present, obj, obj.index.0 + 0x200, "mapping", cx);
                 continue;
             }
             Role::TpdoCommunication(_) => {
                 tx_comm += 1;
-                pair(model, obj, obj.index.0 + 0x200, "mapping", cx);
+                pair(&present, obj, obj.index.0 + 0x200, "mapping", cx);
                 continue;
             }
             Role::RpdoMapping(n) => (true, n),
             Role::TpdoMapping(n) => (false, n),
             _ => continue,
         };
-        pair(model, obj, obj.index.0 - 0x200, "communication", cx);
+        pair(&present, obj, obj.index.0 - 0x200, "communication", cx);
         mapping(secs, model, obj, is_rpdo, n, cx);
     }
     let di = &model.device_info;
@@ -182,8 +190,27 @@ fn pdos(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
     }
 }
 
-fn pair(model: &Model, obj: &Object, other: u16, other_kind: &str, cx: &mut Ctx<'_>) {
-    if !model.objects.contains_key(&Index(other)) {
+/// Which indices of [`PDO_OBJECTS`] a file has: a bit each (256 bytes).
+#[derive(Default)]
+struct PdoSet([u64; 32]);
+
+impl PdoSet {
+    /// Adds `index` (one of [`PDO_OBJECTS`]; others are not kept).
+    fn insert(&mut self, index: u16) {
+        let Some(bit) = index.checked_sub(0x1400).filter(|&b| b < 0x800) else { return };
+        self.0[bit as usize / 64] |= 1 << (bit % 64);
+    }
+
+    /// Whether `index` was added.
+    fn contains(&self, index: u16) -> bool {
+        index.checked_sub(0x1400).filter(|&b| b < 0x800).is_some_and(|b| self.0[b as usize / 64] >> (b % 64) & 1 != 0)
+    }
+}
+
+/// Reports a PDO communication object without its mapping object or the other way round
+/// (`other`, which `present` says whether the file has).
+fn pair(present: &PdoSet, obj: &Object, other: u16, other_kind: &str, cx: &mut Ctx<'_>) {
+    if !present.contains(other) {
         let d = cx.emit(
             codes::E0609,
             Some(obj.at.span),
@@ -200,8 +227,9 @@ fn pair(model: &Model, obj: &Object, other: u16, other_kind: &str, cx: &mut Ctx<
 fn fixed_mapping(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
     let writable: Vec<(&Object, &Entry)> = model
         .objects
-        .values()
-        .filter(|o| matches!(o.index.role(), Role::RpdoMapping(_) | Role::TpdoMapping(_)))
+        .range(PDO_OBJECTS)
+        .map(|(_, o)| o)
+        .filter(|o| is_pdo_mapping(o.index.0))
         .filter_map(|o| Some((o, o.subs.values().find(|e| e.access.writable())?)))
         .collect();
     let Some(&(obj, e)) = writable.first() else { return };
@@ -229,9 +257,34 @@ fn fixed_mapping(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
     );
 }
 
+/// The indices of the PDO communication and mapping objects (RPDO communication 0x1400.. to
+/// TPDO mapping ..0x1BFF).
+const PDO_OBJECTS: std::ops::RangeInclusive<Index> = Index(0x1400)..=Index(0x1BFF);
+
+/// The indices of the objects with a COB-ID [`cob_ids`] checks: 0x1005 (SYNC), 0x1014 (EMCY)
+/// and the PDO communication objects, with the PDO mapping objects between them.
+const COB_ID_OBJECTS: std::ops::RangeInclusive<Index> = Index(0x1005)..=Index(0x19FF);
+
+/// `v` in decimal, as `format!("{v}")` writes it: numbers from 0 to 255 (sub-indices and
+/// counts of them, most numbers a diagnostic here shows) as a slice of a table.
+fn decimal(v: impl Into<i128>) -> std::borrow::Cow<'static, str> {
+    let v = v.into();
+    match u8::try_from(v) {
+        Ok(b) => super::decimal_u8(b).into(),
+        Err(_) => v.to_string().into(),
+    }
+}
+
+/// Whether `index` is a PDO mapping object's (`Role::RpdoMapping` or `Role::TpdoMapping`),
+/// decided on the number without [`Index::role`]'s cases.
+#[inline]
+fn is_pdo_mapping(index: u16) -> bool {
+    matches!(index, 0x1600..=0x17FF | 0x1A00..=0x1BFF)
+}
+
 /// `RPDO 1`, `TPDO 3` (PDO numbers count from 1).
 fn pdo_name(is_rpdo: bool, n: u16) -> String {
-    format!("{} {}", if is_rpdo { "RPDO" } else { "TPDO" }, n + 1)
+    super::cat([if is_rpdo { "RPDO " } else { "TPDO " }, &decimal(n + 1)])
 }
 
 fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u16, cx: &mut Ctx<'_>) {
@@ -281,7 +334,7 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
         }
         let m = PdoMappingEntry::from_u32(raw);
         total_bits += m.bits as u32;
-        let target_text = || format!("0x{:04X} sub {}", m.index.0, m.sub.0);
+        let target_text = || super::cat(["0x", &super::hex4(m.index.0), " sub ", super::decimal_u8(m.sub.0)]);
         if let Some(g) = granularity.filter(|&g| g != 0)
             && !m.bits.is_multiple_of(g)
         {
@@ -347,14 +400,16 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
             continue;
         };
         let target_text = || match model.object(m.index.0) {
-            Some(o) if o.object_type.has_subs() => format!("{} \"{}\" of \"{}\"", target_text(), target.name, o.name),
-            _ => format!("0x{:04X} \"{}\"", m.index.0, target.name),
+            Some(o) if o.object_type.has_subs() => {
+                super::cat([&target_text(), " \"", &target.name, "\" of \"", &o.name, "\""])
+            }
+            _ => super::cat(["0x", &super::hex4(m.index.0), " \"", &target.name, "\""]),
         };
         if !target.pdo_mapping {
             let d = cx.emit(
                 codes::E0602,
                 Some(span()),
-                format!("{} maps {}, which has PDOMapping=0", pdo(), target_text()),
+                super::cat([&pdo(), " maps ", &target_text(), ", which has PDOMapping=0"]),
             );
             d.hint = Some("set PDOMapping=1 on the mapped entry, or remove the mapping".into());
             d.context = c.to_vec();
@@ -432,9 +487,7 @@ fn mapping(secs: &Sections<'_>, model: &Model, obj: &Object, is_rpdo: bool, n: u
 /// in the cache: a pass of its own over the whole model and the section list, which has run
 /// long by then, took 3 % of the reading time for this one comparison per object.
 pub(crate) fn sub_index_zero(secs: &Sections<'_>, obj: &Object, highest_section: Option<u8>, cx: &mut Ctx<'_>) {
-    if !matches!(obj.object_type, ObjectType::Array | ObjectType::Record)
-        || matches!(obj.index.role(), Role::RpdoMapping(_) | Role::TpdoMapping(_))
-    {
+    if !matches!(obj.object_type, ObjectType::Array | ObjectType::Record) || is_pdo_mapping(obj.index.0) {
         return;
     }
     let Some(e0) = obj.sub(0) else { return };
@@ -451,21 +504,31 @@ pub(crate) fn sub_index_zero(secs: &Sections<'_>, obj: &Object, highest_section:
     if ok {
         return;
     }
-    let elements = if is_array && count != highest { format!(" and it has {count} elements") } else { String::new() };
+    let show_count = is_array && count != highest;
+    let (value, highest, count) = (decimal(value), decimal(highest), decimal(count));
+    let (elements, count, tail) = if show_count { (" and it has ", &*count, " elements") } else { ("", "", "") };
     let d = cx.emit(
         codes::E0221,
         Some(value_span(secs, obj, e0)),
-        format!(
-            "sub-index 0 of {} 0x{:04X} is {value}, but the highest sub-index present is {highest}{elements}",
+        super::cat([
+            "sub-index 0 of ",
             otype(obj.object_type),
-            obj.index.0
-        ),
+            " 0x",
+            &super::hex4(obj.index.0),
+            " is ",
+            &value,
+            ", but the highest sub-index present is ",
+            &highest,
+            elements,
+            count,
+            tail,
+        ]),
     );
     d.hint = Some(
         if e0.access.writable() {
-            format!("sub-index 0 counts the entries in use: at most {highest}")
+            super::cat(["sub-index 0 counts the entries in use: at most ", &highest])
         } else {
-            format!("set sub-index 0 to {highest}, the highest sub-index the object supports")
+            super::cat(["set sub-index 0 to ", &highest, ", the highest sub-index the object supports"])
         }
         .into(),
     );
@@ -489,11 +552,30 @@ const RESTRICTED_CAN_IDS: [(u32, u32); 8] = [
 struct CobId<'m> {
     obj: &'m Object,
     entry: &'m Entry,
-    /// `TPDO 1`, `SYNC`, `EMCY`.
-    what: String,
+    /// `TPDO 1`, `SYNC`, `EMCY` (written only into a diagnostic).
+    what: CobOwner,
     value: &'m Value,
     /// Bit 31 says "not valid" (PDO, EMCY); SYNC has no such bit.
     has_valid_bit: bool,
+}
+
+/// Whose COB-ID a [`CobId`] is; shown as `TPDO 1`, `SYNC`, `EMCY`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum CobOwner {
+    /// A PDO: whether it is an RPDO, and its number counted from 0.
+    Pdo(bool, u16),
+    Sync,
+    Emcy,
+}
+
+impl std::fmt::Display for CobOwner {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match *self {
+            CobOwner::Pdo(is_rpdo, n) => f.write_str(&pdo_name(is_rpdo, n)),
+            CobOwner::Sync => f.write_str("SYNC"),
+            CobOwner::Emcy => f.write_str("EMCY"),
+        }
+    }
 }
 
 impl CobId<'_> {
@@ -589,12 +671,12 @@ fn show_cob(v: &Value) -> String {
 /// bits used, and two of the device's own objects on the same CAN-ID.
 fn cob_ids(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
     let mut cobs: Vec<CobId<'_>> = Vec::new();
-    for obj in model.objects.values() {
+    for (_, obj) in model.objects.range(COB_ID_OBJECTS) {
         let (sub, what, has_valid_bit) = match obj.index.role() {
-            Role::RpdoCommunication(n) => (1, pdo_name(true, n), true),
-            Role::TpdoCommunication(n) => (1, pdo_name(false, n), true),
-            Role::SyncCobId => (0, "SYNC".to_owned(), false),
-            Role::EmcyCobId => (0, "EMCY".to_owned(), true),
+            Role::RpdoCommunication(n) => (1, CobOwner::Pdo(true, n), true),
+            Role::TpdoCommunication(n) => (1, CobOwner::Pdo(false, n), true),
+            Role::SyncCobId => (0, CobOwner::Sync, false),
+            Role::EmcyCobId => (0, CobOwner::Emcy, true),
             _ => continue,
         };
         let Some(entry) = obj.sub(sub) else { continue };
@@ -702,6 +784,64 @@ fn cob_ids(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    /// The index ranges the checks look in hold every object of the roles they look for, and
+    /// `is_pdo_mapping` is the roles' own test: for every index.
+    #[test]
+    fn index_ranges_hold_the_roles() {
+        for i in 0..=u16::MAX {
+            let role = Index(i).role();
+            let mapping = matches!(role, Role::RpdoMapping(_) | Role::TpdoMapping(_));
+            assert_eq!(is_pdo_mapping(i), mapping, "{i:#06x}");
+            let pdo = mapping || matches!(role, Role::RpdoCommunication(_) | Role::TpdoCommunication(_));
+            if pdo {
+                assert!(PDO_OBJECTS.contains(&Index(i)), "{i:#06x}");
+            }
+            let cob = matches!(
+                role,
+                Role::RpdoCommunication(_) | Role::TpdoCommunication(_) | Role::SyncCobId | Role::EmcyCobId
+            );
+            if cob {
+                assert!(COB_ID_OBJECTS.contains(&Index(i)), "{i:#06x}");
+            }
+        }
+    }
+
+    #[test]
+    fn decimals_are_written_as_format_writes_them() {
+        for v in (-300i128..300).chain([i128::MIN, i128::MAX, 65_535, 1 << 40]) {
+            assert_eq!(decimal(v), format!("{v}"));
+        }
+        for n in 0..=u16::MAX {
+            assert_eq!(decimal(n), format!("{n}"));
+        }
+        for n in [0, 1, 254, 255, 511, u16::MAX - 1] {
+            assert_eq!(pdo_name(true, n), format!("RPDO {}", n + 1));
+            assert_eq!(pdo_name(false, n), format!("TPDO {}", n + 1));
+        }
+    }
+
+    #[test]
+    fn pdo_sets_hold_the_pdo_indices_added() {
+        let mut set = PdoSet::default();
+        let added = |i: u16| PDO_OBJECTS.contains(&Index(i)) && i % 3 != 1;
+        for i in 0..=u16::MAX {
+            if i % 3 != 1 {
+                set.insert(i);
+            }
+        }
+        for i in 0..=u16::MAX {
+            assert_eq!(set.contains(i), added(i), "{i:#06x}");
+        }
+    }
+
+    #[test]
+    fn cob_owners_are_shown_as_before() {
+        assert_eq!(CobOwner::Pdo(true, 0).to_string(), "RPDO 1");
+        assert_eq!(CobOwner::Pdo(false, 511).to_string(), "TPDO 512");
+        assert_eq!(CobOwner::Sync.to_string(), "SYNC");
+        assert_eq!(CobOwner::Emcy.to_string(), "EMCY");
+    }
 
     /// The shortcut says "nothing to report" only where every node's check says so.
     fn agrees(value: Value, has_valid_bit: bool, nodes: std::ops::RangeInclusive<u8>) {
