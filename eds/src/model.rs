@@ -922,6 +922,11 @@ impl<K: Ord + Copy, V: Keyed<K>> VecMap<K, V> {
         VecMap { entries: values, key: std::marker::PhantomData }
     }
 
+    /// The values in key order, as the vector that holds them.
+    pub(crate) fn into_values(self) -> Vec<V> {
+        self.entries
+    }
+
     /// The number of entries.
     pub fn len(&self) -> usize {
         self.entries.len()

@@ -1,7 +1,7 @@
 //! Pass 3: object sections → [`Object`]s with typed [`Entry`]s.
 
 use super::info::{Lists, expected_category};
-use super::sections::{KeySet, Keys, Kind, Kv, Section, Sections, match_keys};
+use super::sections::{KeySet, Keys, Kind, Kv, Section, Sections, match_keys, reuse, with_room};
 use super::{Crumbs, Ctx, otype};
 use crate::codes;
 use crate::model::{
@@ -779,9 +779,13 @@ fn numbered<'s, 'a>(
 
 /// Lowers every object section into `model.objects`.
 pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Model, cx: &mut Ctx<'_>) {
-    let mut objects: Vec<(u16, &Section<'_>)> = Vec::with_capacity(secs.list.len());
+    // (The lists are made on the buffers of the last file's, with room for a file of the size
+    // the reader expects: see `pool`.)
+    let lists_of = std::mem::take(&mut cx.pool.lists);
+    let room = secs.list.len().max(cx.pool.room / 48 + 8);
+    let mut objects: Vec<(u16, &Section<'_>)> = with_room(reuse(lists_of.objects), room);
     // Sub-object sections by object index, in file order for each index (the sort is stable).
-    let mut subs: Vec<(u16, (u8, &Section<'_>))> = Vec::with_capacity(secs.list.len());
+    let mut subs: Vec<(u16, (u8, &Section<'_>))> = with_room(reuse(lists_of.subs), room);
     let mut orphans: Vec<&Section<'_>> = Vec::new();
     // The [xxxxName], [xxxxValue] and [xxxxObjectLinks] sections (0, 1, 2) by object index: few,
     // and most files have none. Each kind of section is in the list once, so an object finds its
@@ -806,11 +810,16 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
         }
     }
     side.sort_unstable_by_key(|&(i, which, _)| (i, which));
-    let mut object_indices: Vec<u16> = objects.iter().map(|&(i, _)| i).collect();
+    let mut object_indices: Vec<u16> = with_room(lists_of.object_indices, room);
+    object_indices.extend(objects.iter().map(|&(i, _)| i));
     object_indices.sort_unstable();
     subs.sort_by_key(|&(i, _)| i);
-    let sub_indices: Vec<u16> = subs.iter().map(|&(i, _)| i).collect();
-    let subs: Vec<(u8, &Section<'_>)> = subs.into_iter().map(|(_, s)| s).collect();
+    let mut sub_indices: Vec<u16> = with_room(lists_of.sub_indices, room);
+    sub_indices.extend(subs.iter().map(|&(i, _)| i));
+    let mut sub_sections: Vec<(u8, &Section<'_>)> = with_room(reuse(lists_of.sub_sections), room);
+    sub_sections.extend(subs.iter().map(|&(_, s)| s));
+    let by_object = subs;
+    let subs = sub_sections;
     let builder = EntryBuilder { is_dcf: model.kind == FileKind::Dcf, secs, compact_template: false };
     // Where the sub-object sections of the previous object ended. Objects usually come in
     // ascending order, so the next object's sub-objects are found by looking on from there (a
@@ -818,7 +827,8 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
     let mut next = 0;
     // The objects in file order: sorted once at the end if the file did not list them in
     // ascending order (inserting each into the sorted map would move the later ones every time).
-    let mut built: Vec<Object> = Vec::with_capacity(objects.len());
+    let mut built: Vec<Object> =
+        with_room(std::mem::take(&mut cx.pool.objects), objects.len().max(cx.pool.room / 256 + 8));
     for &(index, sec) in &objects {
         let mut from = next;
         if from > 0 && sub_indices[from - 1] >= index {
@@ -904,6 +914,13 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
         d.hint =
             Some(format!("add the object section [{index:04X}] with ParameterName, ObjectType and SubNumber").into());
     }
+    cx.pool.lists = super::pool::ObjectLists {
+        objects: reuse(objects),
+        subs: reuse(by_object),
+        sub_sections: reuse(subs),
+        sub_indices,
+        object_indices,
+    };
 }
 
 fn build_object(

@@ -266,6 +266,8 @@ pub(crate) struct Scratch {
     /// grows is replaced, and its replacement's pages are fresh again, while room that is never
     /// written costs no memory (only address space).
     pub room_for: usize,
+    /// The buffers of the models given back ([`crate::Reader::recycle`]).
+    pub pool: super::pool::Pool,
 }
 
 impl Scratch {
