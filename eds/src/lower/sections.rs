@@ -10,41 +10,94 @@ use crate::codes;
 use crate::model::Category;
 use crate::source::{Encoding, LineCol, Span};
 
-/// One `key=value` entry: its key and value, slices of the source text, 32 bytes. Their
+/// One `key=value` entry: its key and value, slices of the source text ([`Kv::key`],
+/// [`Kv::value`]), in 20 bytes: where the key starts, its length, how far after it the value
+/// starts and the value's length (a text's positions are `u32`, as its [`Span`]s are). Their
 /// spans follow from where they lie in the text ([`Kv::key_span`]), and the occurrence of a
 /// repeated section an entry came from from where the section's headers lie
-/// ([`report_duplicate`]): the entries of a file, which pass 1 writes and every later pass
-/// reads, took 40 bytes each with those stored, about twice the size of the file, all of it
-/// fresh memory for the first (largest) file a process reads.
-#[derive(Clone, Copy, Debug)]
+/// ([`report_duplicate`]). The entries of a file, which pass 1 writes and every later pass
+/// reads, are the largest buffer lowering writes, about twice the size of the file with 32
+/// bytes an entry (two `&str`), all of it fresh memory (a page fault every 4 KiB) for the
+/// first (largest) file a process reads, and again on each thread that reads files.
+#[derive(Clone, Copy)]
+#[repr(C, packed(4))]
 pub(crate) struct Kv<'a> {
-    pub key: &'a str,
-    pub value: &'a str,
+    /// The first byte of the key.
+    key_at: *const u8,
+    key_len: u32,
+    /// The value starts this many bytes after the key.
+    value_off: u32,
+    value_len: u32,
+    text: std::marker::PhantomData<&'a str>,
 }
 
-const _: () = assert!(std::mem::size_of::<Kv<'_>>() <= 32);
+const _: () = assert!(std::mem::size_of::<Kv<'_>>() == 20);
 
 impl<'a> Kv<'a> {
     /// An entry whose key and value are `key` and `value` of `text` (spans of the same text;
-    /// a span that does not fit it gives an empty slice of it).
+    /// a span that does not fit it gives an empty slice of it; a value before its key, which
+    /// no line has, an empty one after the key).
     pub fn new(text: &'a str, key: Span, value: Span) -> Self {
         let slice = |s: Span| {
             let (start, end) = (s.start as usize, s.end as usize);
             text.get(start..end).or_else(|| text.get(start..start)).unwrap_or(&text[text.len()..])
         };
-        Kv { key: slice(key), value: slice(value) }
+        let key = slice(key);
+        let mut value = slice(value);
+        if (value.as_ptr() as usize) < key.as_ptr() as usize {
+            value = &key[key.len()..];
+        }
+        Kv::of(key, value)
+    }
+
+    /// The entry of `key` and `value`, slices of one text, the value not before the key (as
+    /// on every line, where the key comes before the `=` and the value after it).
+    #[inline(always)]
+    pub fn of(key: &'a str, value: &'a str) -> Self {
+        let value_off = (value.as_ptr() as usize).wrapping_sub(key.as_ptr() as usize);
+        debug_assert!(value_off <= u32::MAX as usize && value.len() <= u32::MAX as usize);
+        Kv {
+            key_at: key.as_ptr(),
+            key_len: key.len() as u32,
+            value_off: value_off as u32,
+            value_len: value.len() as u32,
+            text: std::marker::PhantomData,
+        }
+    }
+
+    /// The key.
+    #[inline(always)]
+    pub fn key(&self) -> &'a str {
+        let (at, len) = (self.key_at, self.key_len as usize);
+        // SAFETY: `at` and `len` are the address and length of a `&'a str` ([`Kv::of`]).
+        unsafe { std::str::from_utf8_unchecked(std::slice::from_raw_parts(at, len)) }
+    }
+
+    /// The value.
+    #[inline(always)]
+    pub fn value(&self) -> &'a str {
+        let (at, off, len) = (self.key_at, self.value_off as usize, self.value_len as usize);
+        // SAFETY: the value is a `&'a str` that starts `off` bytes after the key's first byte,
+        // in the same text, and is `len` bytes long ([`Kv::of`]): `at + off` is its address.
+        unsafe { std::str::from_utf8_unchecked(std::slice::from_raw_parts(at.add(off), len)) }
     }
 
     /// The span of the key in `text`, the text it is a slice of.
     #[inline]
     pub fn key_span(&self, text: &str) -> Span {
-        span_in(text, self.key)
+        span_in(text, self.key())
     }
 
     /// The span of the value in `text`, the text it is a slice of.
     #[inline]
     pub fn value_span(&self, text: &str) -> Span {
-        span_in(text, self.value)
+        span_in(text, self.value())
+    }
+}
+
+impl std::fmt::Debug for Kv<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Kv").field("key", &self.key()).field("value", &self.value()).finish()
     }
 }
 
@@ -623,7 +676,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     let mut lexer = crate::lex::Lexer::new(text);
     loop {
         if current && let Some(e) = lexer.next_plain_entry() {
-            entries.push(Kv { key: e.key, value: e.value });
+            entries.push(Kv::of(e.key, e.value));
             if e.newline {
                 line_starts.push(e.end);
             }
@@ -1018,7 +1071,7 @@ impl<'a, const N: usize> Keys<'a, N> {
 pub(crate) fn parameter_name<'a>(entries: &[Kv<'a>]) -> Option<&'a str> {
     const KEY: &str = "ParameterName";
     let is_name = |k: &str| k.len() == KEY.len() && (k == KEY || k.eq_ignore_ascii_case(KEY));
-    entries.iter().rev().find(|kv| is_name(kv.key)).map(|kv| kv.value)
+    entries.iter().rev().find(|kv| is_name(kv.key())).map(|kv| kv.value())
 }
 
 /// Matches a section's entries against `known` key names (case-insensitively), reporting case
@@ -1041,25 +1094,25 @@ pub(crate) fn match_keys<'a, const N: usize>(
     let mut numbered = true;
     let names = &known.names;
     for kv in sec.entries {
-        let found_key = known.find(kv.key);
+        let found_key = known.find(kv.key());
         let mut hit = found_key.map(|(i, _)| i);
         if let Some((i, exact)) = found_key {
             if !exact && !cx.skips(codes::E0104) {
                 let d = cx.emit(
                     codes::E0104,
                     Some(kv.key_span(&cx.src.text)),
-                    super::cat(["key `", kv.key, "` is written `", names[i], "` in CiA 306"]),
+                    super::cat(["key `", kv.key(), "` is written `", names[i], "` in CiA 306"]),
                 );
                 d.hint = Some(super::cat(["write `", names[i], "`"]).into());
                 d.context = context.to_vec();
             }
         } else {
-            hit = known.find_loose(kv.key);
+            hit = known.find_loose(kv.key());
             if let Some(i) = hit {
                 let d = cx.emit(
                     codes::E0103,
                     Some(kv.key_span(&cx.src.text)),
-                    format!("key `{}` is spelled `{}` in CiA 306", kv.key, names[i]),
+                    format!("key `{}` is spelled `{}` in CiA 306", kv.key(), names[i]),
                 );
                 d.hint = Some(format!("write `{}`", names[i]).into());
                 d.context = context.to_vec();
@@ -1072,8 +1125,8 @@ pub(crate) fn match_keys<'a, const N: usize>(
                 }
                 found[i] = Some(kv);
             }
-            None if numbered && is_number(kv.key, unknown.len() + 1) => {
-                debug_assert!(!unknown.iter().any(|u| u.key.eq_ignore_ascii_case(kv.key)), "{}", kv.key);
+            None if numbered && is_number(kv.key(), unknown.len() + 1) => {
+                debug_assert!(!unknown.iter().any(|u| u.key().eq_ignore_ascii_case(kv.key())), "{}", kv.key());
                 unknown.push(kv);
                 if report_unknown {
                     report_unknown_key(cx, kv, sec, context);
@@ -1085,18 +1138,18 @@ pub(crate) fn match_keys<'a, const N: usize>(
                     // Sized for every entry of the section, so that neither grows again.
                     unknown.reserve(sec.entries.len());
                     let mut map = FastMap::with_capacity_and_hasher(sec.entries.len(), Default::default());
-                    map.extend(unknown.iter().enumerate().map(|(i, u)| (Caseless(u.key), i)));
+                    map.extend(unknown.iter().enumerate().map(|(i, u)| (Caseless(u.key()), i)));
                     last_unknown = Some(map);
                 }
                 let prev = match &mut last_unknown {
-                    Some(map) => match map.entry(Caseless(kv.key)) {
+                    Some(map) => match map.entry(Caseless(kv.key())) {
                         std::collections::hash_map::Entry::Occupied(e) => Some(*e.get()),
                         std::collections::hash_map::Entry::Vacant(e) => {
                             e.insert(unknown.len());
                             None
                         }
                     },
-                    None => unknown.iter().position(|u| u.key.eq_ignore_ascii_case(kv.key)),
+                    None => unknown.iter().position(|u| u.key().eq_ignore_ascii_case(kv.key())),
                 };
                 // A repeated key keeps its first place with the later value, as a known key
                 // does: the model (and a file written from it) has each key once.
@@ -1121,7 +1174,7 @@ fn report_unknown_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, sec: &Section<'_>, context:
     let d = cx.emit(
         codes::E0102,
         Some(kv.key_span(&cx.src.text)),
-        format!("key `{}` is not a CiA 306 key of [{}]; it is kept as written", kv.key, sec.name),
+        format!("key `{}` is not a CiA 306 key of [{}]; it is kept as written", kv.key(), sec.name),
     );
     d.context = context.to_vec();
 }
@@ -1177,7 +1230,12 @@ pub(crate) fn report_duplicate(cx: &mut Ctx<'_>, prev: &Kv<'_>, kv: &Kv<'_>, con
     let d = cx.emit(
         codes::E0007,
         Some(kv.key_span(&cx.src.text)),
-        format!("key `{}` is set again (first at line {}); the later value `{}` is used", kv.key, first.line, kv.value),
+        format!(
+            "key `{}` is set again (first at line {}); the later value `{}` is used",
+            kv.key(),
+            first.line,
+            kv.value()
+        ),
     );
     d.hint = Some("remove one of the two entries".into());
     d.context = context.to_vec();
@@ -1186,6 +1244,39 @@ pub(crate) fn report_duplicate(cx: &mut Ctx<'_>, prev: &Kv<'_>, kv: &Kv<'_>, con
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An entry gives back the key and value it was made of, and their spans, whatever their
+    /// lengths and places in the text (multi-byte text, empty parts, parts at either end of the
+    /// text, spans that do not fit it).
+    #[test]
+    fn an_entry_gives_back_its_key_and_value() {
+        let text = "Ä=ü;\r\nParameterName = Motor ☃ speed\nx=\n=\n".repeat(30);
+        let len = text.len() as u32;
+        let mut rng = crate::test_rng(0x5EED_0FC0_FFEE);
+        let mut boundary = |max: u32| loop {
+            let at = rng(max as u64 + 1) as u32;
+            if text.is_char_boundary(at as usize) {
+                return at;
+            }
+        };
+        for _ in 0..5000 {
+            let (a, b, c, d) = (boundary(len), boundary(len), boundary(len), boundary(len));
+            let mut at = [a, b, c, d];
+            at.sort_unstable();
+            let (key, value) = (Span::new(at[0], at[1]), Span::new(at[2], at[3]));
+            let kv = Kv::new(&text, key, value);
+            assert_eq!(kv.key(), &text[at[0] as usize..at[1] as usize]);
+            assert_eq!(kv.value(), &text[at[2] as usize..at[3] as usize]);
+            assert_eq!((kv.key_span(&text), kv.value_span(&text)), (key, value));
+            assert_eq!(Kv::of(kv.key(), kv.value()).value_span(&text), value);
+        }
+        // A span past the end is an empty part at its start, or at the end of the text.
+        let kv = Kv::new(&text, Span::new(len - 1, len + 5), Span::new(len + 2, len + 9));
+        assert_eq!((kv.key(), kv.value()), ("", ""));
+        assert_eq!(kv.key_span(&text), Span::new(len - 1, len - 1));
+        assert_eq!(kv.value_span(&text), Span::new(len, len));
+        assert_eq!(format!("{:?}", Kv::new("K=V", Span::new(0, 1), Span::new(2, 3))), r#"Kv { key: "K", value: "V" }"#);
+    }
 
     /// A buffer of entries borrowed from one text is kept, memory and all, for the next text.
     #[test]
@@ -1227,7 +1318,7 @@ mod tests {
             for kv in sec.entries {
                 let (key, value) = (kv.key_span(src_text), kv.value_span(src_text));
                 assert_eq!(general.get(&key.start), Some(&(key, value)), "{text:?}");
-                assert_eq!((kv.key, kv.value), (doc.source.slice(key), doc.source.slice(value)), "{text:?}");
+                assert_eq!((kv.key(), kv.value()), (doc.source.slice(key), doc.source.slice(value)), "{text:?}");
                 assert!(seen.insert(key.start), "{text:?}");
             }
         }
@@ -1542,8 +1633,8 @@ mod tests {
             let keys = match_keys(&mut cx, &secs.list[0], &KeySet::new(["SupportedObjects"]), Crumbs::default(), false);
             // Each key once: `2` and `xY` keep their first place with their later values.
             assert_eq!(keys.unknown.len(), n + 1);
-            assert_eq!(keys.unknown[1].value, "0x2000");
-            assert_eq!(keys.unknown[n].value, "2");
+            assert_eq!(keys.unknown[1].value(), "0x2000");
+            assert_eq!(keys.unknown[n].value(), "2");
             let repeats: Vec<_> = cx
                 .diags
                 .iter()
