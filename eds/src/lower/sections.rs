@@ -616,8 +616,11 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     let mut unknown: std::collections::HashMap<NameKey, usize> = std::collections::HashMap::new();
     let mut entries: Vec<Kv<'a>> = with_room(reuse(std::mem::take(&mut scratch.entries)), room / 10 + 8);
     // Each section header starts a run of entries: (section, first entry, where the header's
-    // name starts). A run ends where the next begins.
-    let mut runs: Vec<(u32, u32, u32)> = Vec::with_capacity(sections);
+    // name starts). A run ends where the next begins. Until a section is repeated, each run is
+    // a section of its own, in order, and is kept in the section's head (the first entry in
+    // the start of its range; the header in its name's span): the list of runs is only made
+    // (from the heads) when a section comes again, which few files have.
+    let mut runs: Vec<(u32, u32, u32)> = Vec::new();
     let mut repeated = false;
     // Whether the following entries belong to a section.
     let mut current = false;
@@ -654,21 +657,26 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
                 },
                 k => by_kind.enter(k, heads.len()),
             };
-            let i = match existing {
+            let first = entries.len();
+            match existing {
                 Some(i) => {
-                    repeated = true;
+                    if !repeated {
+                        repeated = true;
+                        runs = runs_of_heads(&heads, sections);
+                    }
                     section_again(cx, name, name_str, heads[i].at.line);
-                    i
+                    runs.push((i as u32, first as u32, name.start));
                 }
                 None => {
                     let i = heads.len();
                     let at = LineCol { line: line_starts.len() as u32, col: $col };
-                    heads.push(Head { name: name_str, name_span: name, at, kind, entries: 0..0 });
-                    i
+                    heads.push(Head { name: name_str, name_span: name, at, kind, entries: first..first });
+                    if repeated {
+                        runs.push((i as u32, first as u32, name.start));
+                    }
                 }
-            };
+            }
             current = true;
-            runs.push((i as u32, entries.len() as u32, name.start));
         }};
     }
     // The lines are taken from the lexer one at a time; none is kept. Most lines are plain
@@ -733,9 +741,11 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     src.set_line_starts(line_starts);
     let run_end = |r: usize| runs.get(r + 1).map_or(entries.len(), |&(_, start, _)| start as usize);
     if !repeated {
-        // Every section has exactly one run, in order.
-        for r in 0..runs.len() {
-            heads[runs[r].0 as usize].entries = runs[r].1 as usize..run_end(r);
+        // Every section has exactly one run, in order, which ends where the next begins.
+        let mut end = entries.len();
+        for h in heads.iter_mut().rev() {
+            h.entries.end = end;
+            end = h.entries.start;
         }
     } else {
         // Move the entries of each section's runs together, sections in order of first
@@ -756,6 +766,15 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
         cx.header_starts = runs.iter().map(|&(_, _, at)| at).collect();
     }
     Collected { text, entries, heads, by_kind }
+}
+
+/// The runs of entries of `heads`, each section one run, in order (what `collect` lists until
+/// a section is repeated), with room for `room` runs.
+#[cold]
+fn runs_of_heads(heads: &[Head<'_>], room: usize) -> Vec<(u32, u32, u32)> {
+    let mut runs = Vec::with_capacity(room.max(heads.len() + 1));
+    runs.extend(heads.iter().enumerate().map(|(i, h)| (i as u32, h.entries.start as u32, h.name_span.start)));
+    runs
 }
 
 /// The position of the first byte of `b` that is not ASCII: sixty-four bytes at a time
@@ -1388,6 +1407,61 @@ mod tests {
             let orphans = lines.iter().take_while(|&&(_, k)| k != 0).count();
             proptest::prop_assert_eq!(repeats, reference_repeats(&lines[orphans..]).iter().map(|n| n + orphans as u32).collect::<Vec<_>>(), "{:?}", text);
         }
+        /// Each section holds the entries of all its occurrences, in file order, sections in the
+        /// order they first come, with where each header was (when a section comes again),
+        /// whether or not and wherever sections are repeated (sections `[Xn]`, keys `Kn`;
+        /// 0 is a header), in one reader and another reusing its buffers.
+        #[test]
+        fn sections_hold_the_entries_of_all_their_occurrences(
+            files in proptest::collection::vec(proptest::collection::vec((0..4usize, 0..4usize), 0..40), 1..4),
+        ) {
+            let mut scratch = Scratch::default();
+            for lines in &files {
+                let text: String = lines
+                    .iter()
+                    .enumerate()
+                    .map(|(n, &(s, k))| if k == 0 { format!("[X{s}]\n") } else { format!("K{k}=v{n}\n") })
+                    .collect();
+                // The reference: sections by first occurrence, each with its entries in order.
+                let mut order: Vec<usize> = Vec::new();
+                let mut want: Vec<Vec<String>> = Vec::new();
+                let mut headers: Vec<u32> = Vec::new();
+                let mut current = None;
+                let mut at = 0u32;
+                for (n, &(s, k)) in lines.iter().enumerate() {
+                    if k == 0 {
+                        let i = order.iter().position(|&o| o == s).unwrap_or_else(|| {
+                            order.push(s);
+                            want.push(Vec::new());
+                            order.len() - 1
+                        });
+                        current = Some(i);
+                        headers.push(at + 1);
+                    } else if let Some(i) = current {
+                        want[i].push(format!("K{k}=v{n}"));
+                    }
+                    at += if k == 0 { 5 } else { format!("K{k}=v{n}\n").len() as u32 };
+                }
+                let repeated = headers.len() > order.len();
+                let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", &text));
+                let mut cx = Ctx::new(&doc.source, crate::Strictness::Lenient);
+                let mut collected = collect(&doc, &mut cx, &mut scratch);
+                let secs = collected.sections();
+                let got: Vec<Vec<String>> = secs
+                    .list
+                    .iter()
+                    .map(|s| s.entries.iter().map(|kv| format!("{}={}", kv.key(), kv.value())).collect())
+                    .collect();
+                proptest::prop_assert_eq!(&got, &want, "{:?}", text);
+                let names: Vec<String> = secs.list.iter().map(|s| s.name.to_string()).collect();
+                proptest::prop_assert_eq!(names, order.iter().map(|s| format!("X{s}")).collect::<Vec<_>>());
+                let starts = if repeated { headers } else { Vec::new() };
+                proptest::prop_assert_eq!(&cx.header_starts, &starts, "{:?}", text);
+                let list = reuse(secs.list);
+                scratch.keep(collected, list);
+            }
+        }
+
         /// Numbered keys (`1`, `2`, ... in order, which skip the search for repeats) are kept and
         /// reported as any unknown keys are: the same keys with a letter in front, which never
         /// look numbered, give the same kept keys, repeats and reports.
