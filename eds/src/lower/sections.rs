@@ -187,7 +187,8 @@ pub(crate) struct KindIndex {
 }
 
 impl KindIndex {
-    /// Empties the index (keeping its memory) for a file of about `n` sections, with room in
+    /// Empties the index (keeping its memory) for a file of about `n` sections (the room the
+    /// hash map is given when the sections come out of order), with room in
     /// the sorted vector for `room` (an emptied vector too small is replaced, not grown: growing
     /// would copy its old block onto fresh pages).
     fn reset(&mut self, n: usize, room: usize) {
@@ -609,7 +610,12 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     let room = text.len().max(scratch.room_for);
     let mut heads: Vec<Head<'a>> = with_room(reuse(std::mem::take(&mut scratch.heads)), room / 48 + 8);
     let mut by_kind = std::mem::take(&mut scratch.by_kind);
-    by_kind.reset(sections, room / 48 + 8);
+    // (The hash map of sections, for files whose sections are not in order, a third of the
+    // corpus, is sized for about as many sections as a file has on average, not at most: its
+    // buckets are written all over, so that each page of a map sized for 2.5 times the
+    // sections is touched all the same, and a map too small only grows once; the rounding of
+    // its size to a power of two leaves room for the denser files.)
+    by_kind.reset(text.len() / 128 + 8, room / 48 + 8);
     // Sections of unknown kind, by name in ASCII lower case (names are matched ignoring ASCII
     // case). Real files have few; a file of many must not cost a scan of all the others each,
     // and the names are the file's choice: the standard (keyed) hasher, not `FastMap`'s.
