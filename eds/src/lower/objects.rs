@@ -890,7 +890,8 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
         built.push(obj);
     }
     if model.objects.is_empty() {
-        model.objects = ObjectMap::from_values(built);
+        // (One object per object section: no index twice.)
+        model.objects = ObjectMap::from_unique_values(built);
     } else {
         model.objects.extend(built.into_iter().map(|o| (o.index, o)));
     }
