@@ -144,7 +144,7 @@ pub fn parse_owned(name: &str, bytes: Vec<u8>, options: &Options) -> Parsed {
 /// touches fresh pages, each a page fault, which costs as much as reading the bytes on it. A
 /// `Reader` keeps those buffers: give each file back with [`Reader::recycle`] when done with it,
 /// and the next [`Reader::read_file`] reuses them. The results are those of [`read_file`]. The
-/// buffers are kept while the reader lives: about nine bytes of address space per byte of the
+/// buffers are kept while the reader lives: about seven bytes of address space per byte of the
 /// largest file read (or of [`Reader::ROOM`], whichever is larger), of which memory only as far
 /// as they were written. They are made with room for files of [`Reader::ROOM`] bytes from the
 /// start, so that they are not replaced (by fresh memory) each time a file is larger than those
