@@ -29,8 +29,8 @@
 //! never uses ASCII bytes inside a multi-byte character, so byte positions are always char
 //! boundaries where the grammar cuts. The line's first byte picks the rule, so each byte is
 //! looked at once. The parsers that run over the bulk of the text (`take_till` up to `=` or a
-//! line end) compare sixteen bytes at a time (SSE2 on x86_64, one of the crate's two `unsafe`
-//! uses; eight-byte words elsewhere), and the line end is one match on two bytes. The commonest line,
+//! line end) compare sixteen bytes at a time (SSE2 on x86_64, one of the crate's three kinds of
+//! `unsafe` use; eight-byte words elsewhere), and the line end is one match on two bytes. The commonest line,
 //! `Key=Value` with nothing to trim, has a shorter path of its own
 //! ([`Lexer::next_plain_entry`], tested to agree with the general one): on x86_64 it compares
 //! the sixteen bytes from the line's start once with `=`, the line ends and the printable range,
@@ -38,8 +38,9 @@
 //! value end, whether a byte at either end of them needs trimming, which line end it has; a
 //! longer line's further blocks are compared with the line ends only (lines within sixteen
 //! bytes of the end of the text take the byte-wise scan). It cuts the key and the value out of
-//! the text without checking for char boundaries again (the crate's other `unsafe` use: the
-//! cuts are at ASCII bytes the scan found).
+//! the text without checking for char boundaries again (the second: the cuts are at ASCII
+//! bytes the scan found; the third is pass 1's entry, `lower::sections::Kv`, which keeps its
+//! key and value as an address and `u32` lengths and gives them back with `from_raw_parts`).
 //! Trimming looks at the bytes at either end and only falls back to [`str::trim`] when it meets
 //! a non-ASCII byte there (which may be Unicode white space). [`Lexer`] allocates nothing; [`lex`]
 //! allocates the `Vec` of lines and the line index.

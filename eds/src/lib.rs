@@ -189,10 +189,10 @@ impl Reader {
     }
 
     /// Takes a file back, for its memory to serve the next one (the model and diagnostics are
-    /// dropped; the text and line index are kept).
+    /// dropped; the text, the line index and the model's list of objects are kept).
     pub fn recycle(&mut self, parsed: Parsed) {
         let Parsed { document, model, mut diagnostics, .. } = parsed;
-        drop(model);
+        self.scratch.pool.take_back(model);
         diagnostics.clear();
         if diagnostics.capacity() > self.scratch.diags.capacity() {
             self.scratch.diags = diagnostics;

@@ -20,6 +20,7 @@
 mod info;
 mod objects;
 pub mod pdo;
+mod pool;
 mod sections;
 mod validate;
 
@@ -55,6 +56,8 @@ pub(crate) fn lower_reusing(
 ) -> (Model, Vec<Diagnostic>, crate::NotKept) {
     let mut cx = Ctx::reusing(&doc.source, options.strictness, std::mem::take(&mut scratch.diags), scratch.room_for);
     cx.least_kept = options.least_kept();
+    cx.pool = std::mem::take(&mut scratch.pool);
+    cx.pool.room = doc.source.text.len().max(scratch.room_for);
     let mut collected = sections::collect(doc, &mut cx, scratch);
     let secs = collected.sections();
     let mut model = Model::default();
@@ -69,6 +72,7 @@ pub(crate) fn lower_reusing(
     let list = sections::reuse(secs.list);
     scratch.keep(collected, list);
     cx.report_left_out();
+    scratch.pool = cx.pool;
     let not_kept = cx.not_kept;
     let mut diags = cx.diags;
     // File order: by position, whole-file diagnostics last. The sort is stable, so diagnostics
@@ -174,6 +178,8 @@ pub(crate) struct Ctx<'a> {
     pub not_kept: crate::NotKept,
     /// A buffer for the quirks of one value at a time (taken and put back around each use).
     pub quirks: Vec<crate::value::Quirk>,
+    /// The buffers of earlier files' models, for this file's ([`pool::Pool`]).
+    pub pool: pool::Pool,
 }
 
 /// Implicit CompactSubObj elements a file of `len` bytes may declare: 65,536 (256 full arrays;
@@ -226,6 +232,7 @@ impl<'a> Ctx<'a> {
             least_kept: crate::diag::Severity::Note,
             not_kept: crate::NotKept::default(),
             quirks: Vec::new(),
+            pool: pool::Pool::default(),
         }
     }
 

@@ -922,6 +922,23 @@ impl<K: Ord + Copy, V: Keyed<K>> VecMap<K, V> {
         VecMap { entries: values, key: std::marker::PhantomData }
     }
 
+    /// The values in key order, as the vector that holds them.
+    pub(crate) fn into_values(self) -> Vec<V> {
+        self.entries
+    }
+
+    /// A map of `values`, which may come in any order, each holding its own key, no key twice
+    /// (as lowering makes the objects of a file: one per object section). Values not in order
+    /// are sorted in place, without the buffer the stable sort of [`VecMap::from_values`]
+    /// asks for (a block the size of half the values, of a size that changes with each file).
+    pub(crate) fn from_unique_values(mut values: Vec<V>) -> Self {
+        if !values.is_sorted_by(|a, b| a.key() < b.key()) {
+            values.sort_unstable_by_key(|v| *v.key());
+            debug_assert!(values.is_sorted_by(|a, b| a.key() < b.key()), "a key twice");
+        }
+        VecMap { entries: values, key: std::marker::PhantomData }
+    }
+
     /// The number of entries.
     pub fn len(&self) -> usize {
         self.entries.len()

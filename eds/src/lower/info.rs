@@ -11,7 +11,7 @@ use crate::value::parse_int;
 pub(crate) const BAUD_RATES: [u16; 8] = [10, 20, 50, 125, 250, 500, 800, 1000];
 
 fn owned(kv: &Kv<'_>) -> (String, String) {
-    (kv.key.to_owned(), kv.value.to_owned())
+    (kv.key().to_owned(), kv.value().to_owned())
 }
 
 /// Reads an unsigned number for an information key; reports E0503 and returns `None` when it
@@ -20,7 +20,7 @@ fn owned(kv: &Kv<'_>) -> (String, String) {
 fn info_uint(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u64> {
     // A plain number in range, as most are, needs neither the comment split nor the general
     // reader (which reads it as the same number), nor a call.
-    if let Some((n, _)) = crate::value::parse_plain_uint(kv.value)
+    if let Some((n, _)) = crate::value::parse_plain_uint(kv.value())
         && n <= max
     {
         return Some(n);
@@ -30,14 +30,14 @@ fn info_uint(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u
 
 /// [`info_uint`] for a value that is not a plain number in range.
 fn info_uint_general(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> Option<u64> {
-    let v = kv.value.split(';').next().unwrap_or("").trim();
+    let v = kv.value().split(';').next().unwrap_or("").trim();
     if v.is_empty() {
         let d = cx.emit(
             codes::E0503,
             Some(kv.value_span(&cx.src.text)),
-            super::cat(["[", section, "] ", kv.key, " is empty"]),
+            super::cat(["[", section, "] ", kv.key(), " is empty"]),
         );
-        d.hint = Some(super::cat(["write a number or remove the `", kv.key, "=` line"]).into());
+        d.hint = Some(super::cat(["write a number or remove the `", kv.key(), "=` line"]).into());
         return None;
     }
     // (Quirks go unreported here; the context's buffer takes them.)
@@ -48,7 +48,7 @@ fn info_uint_general(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> 
             cx.emit(
                 codes::E0503,
                 Some(kv.value_span(&cx.src.text)),
-                format!("[{section}] {}={} is out of range 0..={max}", kv.key, p.value),
+                format!("[{section}] {}={} is out of range 0..={max}", kv.key(), p.value),
             );
             None
         }
@@ -56,7 +56,7 @@ fn info_uint_general(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> 
             let d = cx.emit(
                 codes::E0503,
                 Some(kv.value_span(&cx.src.text)),
-                format!("[{section}] {}: `{}` is not a number (kept as text)", kv.key, kv.value),
+                format!("[{section}] {}: `{}` is not a number (kept as text)", kv.key(), kv.value()),
             );
             d.hint = Some("write a decimal number or a 0x-prefixed hexadecimal number".into());
             None
@@ -67,7 +67,7 @@ fn info_uint_general(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u64, section: &str) -> 
 #[inline]
 fn info_bool(cx: &mut Ctx<'_>, kv: &Kv<'_>, section: &str) -> Option<bool> {
     // (As nearly every file writes them: no comment to split off, nothing to trim, no call.)
-    match kv.value.as_bytes() {
+    match kv.value().as_bytes() {
         b"0" => Some(false),
         b"1" => Some(true),
         _ => info_bool_general(cx, kv, section),
@@ -76,14 +76,14 @@ fn info_bool(cx: &mut Ctx<'_>, kv: &Kv<'_>, section: &str) -> Option<bool> {
 
 /// [`info_bool`] for a value other than a plain `0` or `1`.
 fn info_bool_general(cx: &mut Ctx<'_>, kv: &Kv<'_>, section: &str) -> Option<bool> {
-    let v = kv.value.split(';').next().unwrap_or("").trim();
+    let v = kv.value().split(';').next().unwrap_or("").trim();
     match v {
         "0" => Some(false),
         "1" => Some(true),
         _ if v.eq_ignore_ascii_case("true") || v.eq_ignore_ascii_case("false") => {
             let b = v.eq_ignore_ascii_case("true");
             let d =
-                cx.emit(codes::E0503, Some(kv.value_span(&cx.src.text)), format!("[{section}] {} is `{v}`", kv.key));
+                cx.emit(codes::E0503, Some(kv.value_span(&cx.src.text)), format!("[{section}] {} is `{v}`", kv.key()));
             d.hint = Some(format!("CiA 306 writes booleans as 0 or 1: write `{}`", b as u8).into());
             Some(b)
         }
@@ -91,7 +91,7 @@ fn info_bool_general(cx: &mut Ctx<'_>, kv: &Kv<'_>, section: &str) -> Option<boo
             let d = cx.emit(
                 codes::E0503,
                 Some(kv.value_span(&cx.src.text)),
-                format!("[{section}] {}: `{}` is not 0 or 1 (kept as text)", kv.key, kv.value),
+                format!("[{section}] {}: `{}` is not 0 or 1 (kept as text)", kv.key(), kv.value()),
             );
             d.hint = Some("write 0 (not supported) or 1 (supported)".into());
             None
@@ -202,7 +202,7 @@ const FILE_INFO_KEYS: KeySet<12> = KeySet::new([
 fn lower_file_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> FileInfo {
     let keys = match_keys(cx, sec, &FILE_INFO_KEYS, Crumbs::default(), true);
     let mut fi = FileInfo::default();
-    let s = |i: usize| keys.get(i).map(|kv| kv.value.to_owned());
+    let s = |i: usize| keys.get(i).map(|kv| kv.value().to_owned());
     fi.file_name = s(0);
     fi.eds_version = s(3);
     fi.description = s(4);
@@ -228,19 +228,19 @@ fn lower_file_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> FileInfo {
         (9, is_date, "mm-dd-yyyy"),
     ] {
         if let Some(kv) = keys.get(i)
-            && !kv.value.is_empty()
-            && !check(kv.value)
+            && !kv.value().is_empty()
+            && !check(kv.value())
         {
             let d = cx.emit(
                 codes::E0503,
                 Some(kv.value_span(&cx.src.text)),
-                super::cat(["[FileInfo] ", kv.key, "=`", kv.value, "` is not in the CiA 306 form ", form]),
+                super::cat(["[FileInfo] ", kv.key(), "=`", kv.value(), "` is not in the CiA 306 form ", form]),
             );
             d.hint = Some(super::cat(["write it as ", form]).into());
         }
     }
     if let Some(kv) = keys.get(3) {
-        let ok = kv.value.split_once('.').is_some_and(|(a, b)| {
+        let ok = kv.value().split_once('.').is_some_and(|(a, b)| {
             !a.is_empty()
                 && !b.is_empty()
                 && a.bytes().all(|c| c.is_ascii_digit())
@@ -250,7 +250,7 @@ fn lower_file_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> FileInfo {
             let d = cx.emit(
                 codes::E0503,
                 Some(kv.value_span(&cx.src.text)),
-                format!("[FileInfo] EDSVersion=`{}` is not `major.minor`", kv.value),
+                format!("[FileInfo] EDSVersion=`{}` is not `major.minor`", kv.value()),
             );
             d.hint = Some("CiA 306 files are EDSVersion=4.0".into());
         }
@@ -292,9 +292,9 @@ fn lower_device_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> DeviceInfo {
     const S: &str = "DeviceInfo";
     let keys = match_keys(cx, sec, &DEVICE_INFO_KEYS, Crumbs::default(), false);
     let mut di = DeviceInfo {
-        vendor_name: keys.get(0).map(|kv| kv.value.to_owned()),
-        product_name: keys.get(2).map(|kv| kv.value.to_owned()),
-        order_code: keys.get(5).map(|kv| kv.value.to_owned()),
+        vendor_name: keys.get(0).map(|kv| kv.value().to_owned()),
+        product_name: keys.get(2).map(|kv| kv.value().to_owned()),
+        order_code: keys.get(5).map(|kv| kv.value().to_owned()),
         ..Default::default()
     };
     let mut keep = Vec::new();
@@ -347,20 +347,20 @@ fn lower_device_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> DeviceInfo {
     }
     for kv in &keys.unknown {
         // BaudRate_<kbit/s>: any rate is read; the CiA 306 ones are not reported.
-        let rate = match canonical_baud_rate(kv.key) {
+        let rate = match canonical_baud_rate(kv.key()) {
             Some(r) => Some(r),
             None => kv
-                .key
+                .key()
                 .get(..9)
                 .filter(|p| p.eq_ignore_ascii_case("BaudRate_"))
-                .and_then(|_| kv.key[9..].parse::<u16>().ok()),
+                .and_then(|_| kv.key()[9..].parse::<u16>().ok()),
         };
         match rate {
             Some(r) => {
                 // As CiA 306 writes it: `BaudRate_` and the number without a sign or leading
                 // zeros (every file has several of these keys: no string is built to compare).
-                let digits = &kv.key[9..];
-                let canonical = kv.key.starts_with("BaudRate_")
+                let digits = &kv.key()[9..];
+                let canonical = kv.key().starts_with("BaudRate_")
                     && digits.bytes().all(|b| b.is_ascii_digit())
                     && (digits == "0" || !digits.starts_with('0'));
                 if !canonical {
@@ -368,7 +368,7 @@ fn lower_device_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> DeviceInfo {
                     let d = cx.emit(
                         codes::E0104,
                         Some(kv.key_span(&cx.src.text)),
-                        format!("key `{}` is written `{canon}` in CiA 306", kv.key),
+                        format!("key `{}` is written `{canon}` in CiA 306", kv.key()),
                     );
                     d.hint = Some(format!("write `{canon}`").into());
                 }
@@ -390,7 +390,7 @@ fn lower_device_info(cx: &mut Ctx<'_>, sec: &Section<'_>) -> DeviceInfo {
                 cx.emit(
                     codes::E0102,
                     Some(kv.key_span(&cx.src.text)),
-                    format!("key `{}` is not a CiA 306 key of [DeviceInfo]; it is kept as written", kv.key),
+                    format!("key `{}` is not a CiA 306 key of [DeviceInfo]; it is kept as written", kv.key()),
                 );
                 keep.push(owned(kv));
             }
@@ -425,8 +425,8 @@ const COMMISSIONING_KEYS: KeySet<7> =
 fn lower_commissioning(cx: &mut Ctx<'_>, sec: &Section<'_>) -> Commissioning {
     const S: &str = "DeviceComissioning";
     let keys = match_keys(cx, sec, &COMMISSIONING_KEYS, Crumbs::default(), true);
-    let mut c = Commissioning { node_name: keys.get(1).map(|kv| kv.value.to_owned()), ..Default::default() };
-    c.network_name = keys.get(4).map(|kv| kv.value.to_owned());
+    let mut c = Commissioning { node_name: keys.get(1).map(|kv| kv.value().to_owned()), ..Default::default() };
+    c.network_name = keys.get(4).map(|kv| kv.value().to_owned());
     let mut keep = Vec::new();
     if let Some(kv) = keys.get(0) {
         match info_uint(cx, kv, 0xFF, S) {
@@ -482,22 +482,22 @@ fn lower_dummy_usage(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
     const NO_KEYS: KeySet<0> = KeySet::new([]);
     let keys = match_keys(cx, sec, &NO_KEYS, Crumbs::default(), false);
     for kv in &keys.unknown {
-        let ty = dummy_type(kv.key);
+        let ty = dummy_type(kv.key());
         match ty {
             Some(t) => {
                 if !(1..=7).contains(&t) {
                     let d = cx.emit(
                         codes::E0503,
                         Some(kv.key_span(&cx.src.text)),
-                        super::cat(["`", kv.key, "` names no basic data type (0001..0007)"]),
+                        super::cat(["`", kv.key(), "` names no basic data type (0001..0007)"]),
                     );
                     d.hint = Some("dummy mapping exists for the data types 0x0001..=0x0007".into());
                 }
-                if !kv.key.starts_with("Dummy") {
+                if !kv.key().starts_with("Dummy") {
                     cx.emit(
                         codes::E0104,
                         Some(kv.key_span(&cx.src.text)),
-                        format!("key `{}` is written `Dummy{t:04X}` in CiA 306", kv.key),
+                        format!("key `{}` is written `Dummy{t:04X}` in CiA 306", kv.key()),
                     );
                 }
                 if let Some(b) = info_bool(cx, kv, "DummyUsage") {
@@ -508,7 +508,7 @@ fn lower_dummy_usage(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
                 let d = cx.emit(
                     codes::E0503,
                     Some(kv.key_span(&cx.src.text)),
-                    format!("`{}` is not a `DummyNNNN` key (ignored)", kv.key),
+                    format!("`{}` is not a `DummyNNNN` key (ignored)", kv.key()),
                 );
                 d.hint = Some("[DummyUsage] entries are `Dummy0001=1` ... `Dummy0007=1`".into());
             }
@@ -521,28 +521,31 @@ fn lower_comments(cx: &mut Ctx<'_>, sec: &Section<'_>, model: &mut Model) {
     let keys = match_keys(cx, sec, &LINES, Crumbs::default(), false);
     let mut lines: Vec<(u32, &str)> = Vec::new();
     for kv in &keys.unknown {
-        let n =
-            kv.key.get(..4).filter(|p| p.eq_ignore_ascii_case("Line")).and_then(|_| kv.key[4..].parse::<u32>().ok());
+        let n = kv
+            .key()
+            .get(..4)
+            .filter(|p| p.eq_ignore_ascii_case("Line"))
+            .and_then(|_| kv.key()[4..].parse::<u32>().ok());
         match n {
             Some(n) => {
-                if !kv.key.starts_with("Line") {
+                if !kv.key().starts_with("Line") {
                     let d = cx.emit(
                         codes::E0104,
                         Some(kv.key_span(&cx.src.text)),
-                        format!("key `{}` is written `Line{n}` in CiA 306", kv.key),
+                        format!("key `{}` is written `Line{n}` in CiA 306", kv.key()),
                     );
                     d.hint = Some(
                         format!("write `Line{n}`; tools that match keys exactly (python-canopen) miss this line")
                             .into(),
                     );
                 }
-                lines.push((n, kv.value))
+                lines.push((n, kv.value()))
             }
             None => {
                 cx.emit(
                     codes::E0102,
                     Some(kv.key_span(&cx.src.text)),
-                    format!("key `{}` is not a CiA 306 key of [Comments] (ignored)", kv.key),
+                    format!("key `{}` is not a CiA 306 key of [Comments] (ignored)", kv.key()),
                 )
                 .hint = Some("comment lines are `Line1=...`, `Line2=...`".into());
             }
@@ -613,7 +616,7 @@ pub(crate) fn lower_info(secs: &Sections<'_>, model: &mut Model, cx: &mut Ctx<'_
                 let mut entries: Vec<(String, String)> = Vec::with_capacity(sec.entries.len());
                 let mut seen: std::collections::HashMap<String, (usize, &Kv<'_>)> = std::collections::HashMap::new();
                 for kv in sec.entries {
-                    match seen.entry(kv.key.to_ascii_lowercase()) {
+                    match seen.entry(kv.key().to_ascii_lowercase()) {
                         std::collections::hash_map::Entry::Occupied(e) => {
                             let (i, first) = *e.get();
                             report_duplicate(cx, first, kv, Crumbs::default());
@@ -698,11 +701,11 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
         let mut count = 0u32;
         let mut numbers: Option<Vec<u32>> = None;
         for kv in &keys.unknown {
-            let Some(n) = list_number(kv.key) else {
+            let Some(n) = list_number(kv.key()) else {
                 let d = cx.emit(
                     codes::E0404,
                     Some(kv.key_span(&cx.src.text)),
-                    format!("[{name}] entry `{}` is not numbered (ignored)", kv.key),
+                    format!("[{name}] entry `{}` is not numbered (ignored)", kv.key()),
                 );
                 d.hint = Some("list entries are `1=0x1000`, `2=0x1001`, ...".into());
                 continue;
@@ -710,15 +713,15 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
             // The plain forms (`0x1000`) need neither the general number reader nor its list of
             // remarks (which this list does not report).
             // `0x1000`, four hex digits, above all.
-            let plain = match kv.value.as_bytes() {
+            let plain = match kv.value().as_bytes() {
                 &[b'0', b'x' | b'X', a, b, c, d] => {
                     crate::value::hex4_value([a, b, c, d]).map(|v| (v as u64, Radix::Hex))
                 }
                 _ => None,
             };
-            let parsed = match plain.or_else(|| crate::value::parse_plain_uint(kv.value)) {
+            let parsed = match plain.or_else(|| crate::value::parse_plain_uint(kv.value())) {
                 Some((v, radix)) => Ok(crate::value::ParsedInt { value: v as i128, radix, negative: false }),
-                None => parse_int(kv.value, &mut Vec::new()),
+                None => parse_int(kv.value(), &mut Vec::new()),
             };
             let index = match parsed {
                 Ok(p) if (0..=0xFFFF).contains(&p.value) => {
@@ -728,7 +731,8 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                             Some(kv.value_span(&cx.src.text)),
                             format!(
                                 "[{name}] entry {n}=`{}` is not a 0x-prefixed index; read as 0x{:04X}",
-                                kv.value, p.value
+                                kv.value(),
+                                p.value
                             ),
                         );
                         d.hint = Some(format!("write `{n}=0x{:04X}`", p.value).into());
@@ -739,7 +743,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                     let d = cx.emit(
                         codes::E0404,
                         Some(kv.value_span(&cx.src.text)),
-                        format!("[{name}] entry {n}=`{}` is not an object index (ignored)", kv.value),
+                        format!("[{name}] entry {n}=`{}` is not an object index (ignored)", kv.value()),
                     );
                     d.hint = Some("write the index as 0x1234".into());
                     continue;
@@ -794,7 +798,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
         match keys.get(0) {
             Some(kv) => {
                 let mut q = Vec::new();
-                match parse_int(kv.value, &mut q) {
+                match parse_int(kv.value(), &mut q) {
                     Ok(p) if p.value == listed_count as i128 && consecutive => {}
                     Ok(p) => {
                         let d = cx.emit(
@@ -819,7 +823,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                         cx.emit(
                             codes::E0403,
                             Some(kv.value_span(&cx.src.text)),
-                            format!("[{name}] SupportedObjects=`{}` is not a number", kv.value),
+                            format!("[{name}] SupportedObjects=`{}` is not a number", kv.value()),
                         );
                     }
                 }

@@ -1,7 +1,7 @@
 //! Pass 3: object sections → [`Object`]s with typed [`Entry`]s.
 
 use super::info::{Lists, expected_category};
-use super::sections::{KeySet, Keys, Kind, Kv, Section, Sections, match_keys};
+use super::sections::{KeySet, Keys, Kind, Kv, Section, Sections, match_keys, reuse, with_room};
 use super::{Crumbs, Ctx, otype};
 use crate::codes;
 use crate::model::{
@@ -61,12 +61,12 @@ fn keep_entry_keys(
     extra: &mut Vec<(String, String)>,
 ) {
     for kv in VALUE_KEYS.iter().chain(&[K_DENOT]).filter_map(|&i| keys.get(i)) {
-        if !kv.key.eq_ignore_ascii_case("Denotation") {
+        if !kv.key().eq_ignore_ascii_case("Denotation") {
             let what = if t == ObjectType::Null { "" } else { " without CompactSubObj" };
             let d = cx.emit(
                 codes::E0217,
                 Some(kv.key_span(&cx.src.text)),
-                format!("{} has no meaning for object type {}{what} (kept)", kv.key, otype(t)),
+                format!("{} has no meaning for object type {}{what} (kept)", kv.key(), otype(t)),
             );
             d.context = ctx.to_vec();
         }
@@ -75,7 +75,7 @@ fn keep_entry_keys(
 }
 
 fn owned(kv: &Kv<'_>) -> (String, String) {
-    (kv.key.to_owned(), kv.value.to_owned())
+    (kv.key().to_owned(), kv.value().to_owned())
 }
 
 fn source_ref(sec: &Section<'_>) -> SourceRef {
@@ -97,7 +97,7 @@ fn read_before_comment<T, E>(
     quirks: &mut Vec<Quirk>,
     mut read: impl FnMut(&str, &mut Vec<Quirk>) -> Result<T, E>,
 ) -> Result<T, E> {
-    read(kv.value, quirks).or_else(|e| retry_before_comment(cx, kv, context, quirks, e, read))
+    read(kv.value(), quirks).or_else(|e| retry_before_comment(cx, kv, context, quirks, e, read))
 }
 
 /// After `read` of a value's text failed with `first`: `read` of the text before its inline
@@ -111,7 +111,7 @@ fn retry_before_comment<T, E>(
     first: E,
     mut read: impl FnMut(&str, &mut Vec<Quirk>) -> Result<T, E>,
 ) -> Result<T, E> {
-    let Some(head) = before_comment(kv.value) else { return Err(first) };
+    let Some(head) = before_comment(kv.value()) else { return Err(first) };
     quirks.clear();
     match read(head, quirks) {
         Ok(v) => {
@@ -126,7 +126,7 @@ fn retry_before_comment<T, E>(
 /// is removed with a warning. Returns `Err(text)` when unreadable.
 #[inline]
 fn uint_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, max: u32, context: Crumbs<'_>) -> Result<u32, ()> {
-    match value::parse_plain_uint(kv.value) {
+    match value::parse_plain_uint(kv.value()) {
         Some((v, _)) => {
             if v <= max as u64 {
                 Ok(v as u32)
@@ -165,7 +165,7 @@ fn inline_comment(cx: &mut Ctx<'_>, kv: &Kv<'_>, head: &str, context: Crumbs<'_>
     let d = cx.emit(
         codes::E0008,
         Some(kv.value_span(&cx.src.text)),
-        super::cat([kv.key, " `", kv.value, "` carries an inline comment; read as `", head, "`"]),
+        super::cat([kv.key(), " `", kv.value(), "` carries an inline comment; read as `", head, "`"]),
     );
     d.hint = Some("CiA 306 has no inline comments: put the comment on its own line, starting with `;`".into());
     d.context = context.to_vec();
@@ -174,13 +174,13 @@ fn inline_comment(cx: &mut Ctx<'_>, kv: &Kv<'_>, head: &str, context: Crumbs<'_>
 fn report_quirks(cx: &mut Ctx<'_>, kv: &Kv<'_>, quirks: &[Quirk], context: Crumbs<'_>) {
     for q in quirks {
         let span = Some(kv.value_span(&cx.src.text));
-        let text = kv.value;
+        let text = kv.value();
         let (code, msg, hint) = match *q {
             Quirk::AmbiguousOctal { octal, decimal } => (
                 codes::E0303,
                 format!(
                     "{} `{text}` has a leading zero: CiA 306 reads it as octal ({octal}), not decimal ({decimal})",
-                    kv.key
+                    kv.key()
                 ),
                 Some(format!(
                     "write `{decimal}` if decimal was meant, or `0x{octal:X}` if octal was meant; python-canopen cannot read `{text}` at all"
@@ -188,41 +188,41 @@ fn report_quirks(cx: &mut Ctx<'_>, kv: &Kv<'_>, quirks: &[Quirk], context: Crumb
             ),
             Quirk::LeadingZeros => (
                 codes::E0305,
-                format!("{} `{text}` has leading zeros (octal by CiA 306; the same value in decimal)", kv.key),
+                format!("{} `{text}` has leading zeros (octal by CiA 306; the same value in decimal)", kv.key()),
                 Some("drop the leading zeros; python-canopen cannot read numbers written with them".into()),
             ),
             Quirk::DecimalWithLeadingZero => (
                 codes::E0304,
                 format!(
                     "{} `{text}` has a leading zero but digits 8 or 9, so it is not octal; read as decimal",
-                    kv.key
+                    kv.key()
                 ),
                 Some("drop the leading zero".into()),
             ),
             Quirk::HexBitPattern => {
-                (codes::E0309, format!("{} `{text}` is read as a two's complement bit pattern", kv.key), None)
+                (codes::E0309, format!("{} `{text}` is read as a two's complement bit pattern", kv.key()), None)
             }
             Quirk::RealBitPattern => {
-                (codes::E0310, format!("{} `{text}` is read as an IEEE 754 bit pattern", kv.key), None)
+                (codes::E0310, format!("{} `{text}` is read as an IEEE 754 bit pattern", kv.key()), None)
             }
             Quirk::BooleanWord => (
                 codes::E0311,
-                format!("{} `{text}` is a word; CiA 306 writes BOOLEAN values as 0 or 1", kv.key),
+                format!("{} `{text}` is a word; CiA 306 writes BOOLEAN values as 0 or 1", kv.key()),
                 Some("write 0 or 1".into()),
             ),
             Quirk::DomainNotHex => {
-                (codes::E0312, format!("{} `{text}` of a DOMAIN is not hex bytes; kept as text", kv.key), None)
+                (codes::E0312, format!("{} `{text}` of a DOMAIN is not hex bytes; kept as text", kv.key()), None)
             }
             Quirk::EmptyNumeric => continue,
             Quirk::SpacedNumber => (
                 codes::E0314,
-                format!("{} `{text}` has white space inside the number", kv.key),
+                format!("{} `{text}` has white space inside the number", kv.key()),
                 Some("remove the space".into()),
             ),
-            Quirk::TimePair => (codes::E0316, format!("{} `{text}` is written as `days ms`", kv.key), None),
+            Quirk::TimePair => (codes::E0316, format!("{} `{text}` is written as `days ms`", kv.key()), None),
             Quirk::CSuffix => (
                 codes::E0317,
-                format!("{} `{text}` carries a C literal suffix", kv.key),
+                format!("{} `{text}` carries a C literal suffix", kv.key()),
                 Some("remove the suffix (U, L, LL, f): CiA 306 numbers have none".into()),
             ),
         };
@@ -282,12 +282,13 @@ fn plain_int_value(text: &str, ty: DataType) -> Option<Value> {
 /// number, is read where the value is wanted, without a call.
 #[inline(always)]
 fn value_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, ty: DataType, context: Crumbs<'_>) -> Result<Option<Value>, ()> {
-    if let Some(v) = plain_int_value(kv.value, ty) {
+    if let Some(v) = plain_int_value(kv.value(), ty) {
         return Ok(Some(v));
     }
     // An empty value of any type but the strings is no value, with no remark (the general
     // rules' one quirk for it, EmptyNumeric, is not reported here; E0308 is the caller's).
-    if kv.value.is_empty() && !matches!(ty, DataType::VisibleString | DataType::UnicodeString | DataType::OctetString) {
+    if kv.value().is_empty() && !matches!(ty, DataType::VisibleString | DataType::UnicodeString | DataType::OctetString)
+    {
         return Ok(None);
     }
     value_key_other(cx, kv, ty, context)
@@ -307,12 +308,12 @@ fn value_key_general(
     context: Crumbs<'_>,
     quirks: &mut Vec<value::Quirk>,
 ) -> Result<Option<Value>, ()> {
-    let mut parsed = value::parse_value_into(kv.value, ty, quirks);
+    let mut parsed = value::parse_value_into(kv.value(), ty, quirks);
     if let DataType::Other(_) = ty {
         // The type is not known here: keep what cannot be read as a number as text.
         return Ok(match parsed {
             Ok(v) => v,
-            Err(_) => Some(Value::Text(kv.value.to_owned())),
+            Err(_) => Some(Value::Text(kv.value().to_owned())),
         });
     }
     // (A string's text is its value, comment characters included.)
@@ -332,7 +333,7 @@ fn value_key_general(
                 let d = cx.emit(
                     codes::E0302,
                     Some(kv.value_span(&cx.src.text)),
-                    format!("{} `{}`: {why}", kv.key, kv.value),
+                    format!("{} `{}`: {why}", kv.key(), kv.value()),
                 );
                 d.context = context.to_vec();
                 if let (Some(bits), Some(x)) = (ty.bits(), v.as_int())
@@ -351,7 +352,7 @@ fn value_key_general(
             let d = cx.emit(
                 codes::E0301,
                 Some(kv.value_span(&cx.src.text)),
-                format!("{} `{}` cannot be read as {}: {e}", kv.key, kv.value, ty.name()),
+                format!("{} `{}` cannot be read as {}: {e}", kv.key(), kv.value(), ty.name()),
             );
             d.hint = Some(value_error_hint(&e, ty).into());
             d.context = context.to_vec();
@@ -362,7 +363,7 @@ fn value_key_general(
 
 /// Parses `AccessType`, accepting common non-standard spellings with a warning.
 fn access_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, context: Crumbs<'_>) -> Access {
-    let text = kv.value;
+    let text = kv.value();
     // Upper or mixed case is common and harmless; CiA 306 is silent on case here.
     if let Ok(a) = read_before_comment(cx, kv, context, &mut Vec::new(), |t, _| Access::parse(t).ok_or(())) {
         return a;
@@ -380,9 +381,9 @@ fn access_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, context: Crumbs<'_>) -> Access {
         Some(kv.value_span(&cx.src.text)),
         match guess {
             Some(a) => {
-                super::cat(["AccessType `", kv.value, "` is not a CiA 306 access type; read as `", a.as_str(), "`"])
+                super::cat(["AccessType `", kv.value(), "` is not a CiA 306 access type; read as `", a.as_str(), "`"])
             }
-            None => super::cat(["AccessType `", kv.value, "` is not a CiA 306 access type; `ro` assumed"]),
+            None => super::cat(["AccessType `", kv.value(), "` is not a CiA 306 access type; `ro` assumed"]),
         },
     );
     d.hint = Some(
@@ -427,7 +428,7 @@ impl EntryBuilder<'_> {
         context: Crumbs<'_>,
     ) -> Option<Entry> {
         let mut extra: Vec<(String, String)> = Vec::new();
-        let name = match name.or_else(|| keys.get(K_NAME).map(|kv| Name::from(kv.value))) {
+        let name = match name.or_else(|| keys.get(K_NAME).map(|kv| Name::from(kv.value()))) {
             Some(n) => n,
             None => {
                 let d = cx.emit(codes::E0201, Some(sec.name_span), format!("[{}] lacks ParameterName", sec.name));
@@ -443,7 +444,7 @@ impl EntryBuilder<'_> {
                     let d = cx.emit(
                         codes::E0205,
                         Some(kv.value_span(&cx.src.text)),
-                        format!("DataType `{}` is not a type index; the entry is skipped", kv.value),
+                        format!("DataType `{}` is not a type index; the entry is skipped", kv.value()),
                     );
                     d.hint = Some("write the index of the type, e.g. `0x0007` for UNSIGNED32".into());
                     d.context = context.to_vec();
@@ -499,7 +500,7 @@ impl EntryBuilder<'_> {
                 Ok(0) => false,
                 Ok(1) => true,
                 other => {
-                    let v = kv.value.trim();
+                    let v = kv.value().trim();
                     let guess = if v.eq_ignore_ascii_case("true") {
                         true
                     } else if v.eq_ignore_ascii_case("false") {
@@ -532,7 +533,7 @@ impl EntryBuilder<'_> {
         let parameter_value = val(cx, K_PVALUE, &mut extra);
         let low_limit = val(cx, K_LOW, &mut extra);
         let high_limit = val(cx, K_HIGH, &mut extra);
-        let empty_numeric = |kv: Option<&Kv<'_>>| kv.is_some_and(|kv| kv.value.is_empty()) && is_numeric(data_type);
+        let empty_numeric = |kv: Option<&Kv<'_>>| kv.is_some_and(|kv| kv.value().is_empty()) && is_numeric(data_type);
         for i in [K_DEFAULT, K_PVALUE] {
             if empty_numeric(keys.get(i))
                 && let Some(kv) = keys.get(i)
@@ -541,9 +542,9 @@ impl EntryBuilder<'_> {
                 let d = cx.emit(
                     codes::E0308,
                     Some(kv.value_span(&cx.src.text)),
-                    super::cat([kv.key, " of a ", data_type.name(), " is empty"]),
+                    super::cat([kv.key(), " of a ", data_type.name(), " is empty"]),
                 );
-                d.hint = Some(match kv.key {
+                d.hint = Some(match kv.key() {
                     // (As CiA 306 spells the keys, which nearly every file does: no string to build.)
                     "DefaultValue" => "write a value or remove the `DefaultValue=` line".into(),
                     "ParameterValue" => "write a value or remove the `ParameterValue=` line".into(),
@@ -569,7 +570,7 @@ impl EntryBuilder<'_> {
                 let d = cx.emit(
                     codes::E0216,
                     Some(kv.value_span(&cx.src.text)),
-                    format!("ObjFlags `{}` is not a number (kept as text)", kv.value),
+                    format!("ObjFlags `{}` is not a number (kept as text)", kv.value()),
                 );
                 d.context = context.to_vec();
                 extra.push(owned(kv));
@@ -584,7 +585,7 @@ impl EntryBuilder<'_> {
                 let d = cx.emit(
                     codes::E0217,
                     Some(kv.key_span(&cx.src.text)),
-                    format!("{} has no meaning on a single value (kept)", kv.key),
+                    format!("{} has no meaning on a single value (kept)", kv.key()),
                 );
                 d.context = context.to_vec();
                 extra.push(owned(kv));
@@ -609,9 +610,9 @@ impl EntryBuilder<'_> {
                 low_limit,
                 high_limit,
                 obj_flags,
-                denotation: denotation.map(|kv| kv.value.to_owned()),
-                upload_file: upload.map(|kv| kv.value.to_owned()),
-                download_file: download.map(|kv| kv.value.to_owned()),
+                denotation: denotation.map(|kv| kv.value().to_owned()),
+                upload_file: upload.map(|kv| kv.value().to_owned()),
+                download_file: download.map(|kv| kv.value().to_owned()),
                 extra,
             })
         });
@@ -735,13 +736,13 @@ fn numbered<'s, 'a>(
     let keys = match_keys(cx, sec, count, context, false);
     let mut out = Vec::new();
     for kv in &keys.unknown {
-        match kv.key.parse::<u32>() {
+        match kv.key().parse::<u32>() {
             Ok(n) => out.push((n, *kv)),
             Err(_) => {
                 let d = cx.emit(
                     codes::E0214,
                     Some(kv.key_span(&cx.src.text)),
-                    format!("[{}] entry `{}` is not numbered (ignored)", sec.name, kv.key),
+                    format!("[{}] entry `{}` is not numbered (ignored)", sec.name, kv.key()),
                 );
                 d.context = context.to_vec();
             }
@@ -763,7 +764,7 @@ fn numbered<'s, 'a>(
                 let d = cx.emit(
                     codes::E0214,
                     Some(kv.value_span(&cx.src.text)),
-                    format!("{count_key} `{}` is not a number", kv.value),
+                    format!("{count_key} `{}` is not a number", kv.value()),
                 );
                 d.context = context.to_vec();
             }
@@ -779,9 +780,13 @@ fn numbered<'s, 'a>(
 
 /// Lowers every object section into `model.objects`.
 pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Model, cx: &mut Ctx<'_>) {
-    let mut objects: Vec<(u16, &Section<'_>)> = Vec::with_capacity(secs.list.len());
+    // (The lists are made on the buffers of the last file's, with room for a file of the size
+    // the reader expects: see `pool`.)
+    let lists_of = std::mem::take(&mut cx.pool.lists);
+    let room = secs.list.len().max(cx.pool.room / 48 + 8);
+    let mut objects: Vec<(u16, &Section<'_>)> = with_room(reuse(lists_of.objects), room);
     // Sub-object sections by object index, in file order for each index (the sort is stable).
-    let mut subs: Vec<(u16, (u8, &Section<'_>))> = Vec::with_capacity(secs.list.len());
+    let mut subs: Vec<(u16, (u8, &Section<'_>))> = with_room(reuse(lists_of.subs), room);
     let mut orphans: Vec<&Section<'_>> = Vec::new();
     // The [xxxxName], [xxxxValue] and [xxxxObjectLinks] sections (0, 1, 2) by object index: few,
     // and most files have none. Each kind of section is in the list once, so an object finds its
@@ -806,11 +811,16 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
         }
     }
     side.sort_unstable_by_key(|&(i, which, _)| (i, which));
-    let mut object_indices: Vec<u16> = objects.iter().map(|&(i, _)| i).collect();
+    let mut object_indices: Vec<u16> = with_room(lists_of.object_indices, room);
+    object_indices.extend(objects.iter().map(|&(i, _)| i));
     object_indices.sort_unstable();
     subs.sort_by_key(|&(i, _)| i);
-    let sub_indices: Vec<u16> = subs.iter().map(|&(i, _)| i).collect();
-    let subs: Vec<(u8, &Section<'_>)> = subs.into_iter().map(|(_, s)| s).collect();
+    let mut sub_indices: Vec<u16> = with_room(lists_of.sub_indices, room);
+    sub_indices.extend(subs.iter().map(|&(i, _)| i));
+    let mut sub_sections: Vec<(u8, &Section<'_>)> = with_room(reuse(lists_of.sub_sections), room);
+    sub_sections.extend(subs.iter().map(|&(_, s)| s));
+    let by_object = subs;
+    let subs = sub_sections;
     let builder = EntryBuilder { is_dcf: model.kind == FileKind::Dcf, secs, compact_template: false };
     // Where the sub-object sections of the previous object ended. Objects usually come in
     // ascending order, so the next object's sub-objects are found by looking on from there (a
@@ -818,7 +828,8 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
     let mut next = 0;
     // The objects in file order: sorted once at the end if the file did not list them in
     // ascending order (inserting each into the sorted map would move the later ones every time).
-    let mut built: Vec<Object> = Vec::with_capacity(objects.len());
+    let mut built: Vec<Object> =
+        with_room(std::mem::take(&mut cx.pool.objects), objects.len().max(cx.pool.room / 256 + 8));
     for &(index, sec) in &objects {
         let mut from = next;
         if from > 0 && sub_indices[from - 1] >= index {
@@ -862,13 +873,13 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
             let ctx = Crumbs::object(index, &oname);
             for (_, kv) in numbered(cx, l, &OBJECT_LINKS, ctx) {
                 let mut q = Vec::new();
-                match value::parse_int(kv.value, &mut q) {
+                match value::parse_int(kv.value(), &mut q) {
                     Ok(p) if (0..=0xFFFF).contains(&p.value) => obj.object_links.push(Index(p.value as u16)),
                     _ => {
                         let d = cx.emit(
                             codes::E0214,
                             Some(kv.value_span(&cx.src.text)),
-                            format!("object link `{}` is not an index (ignored)", kv.value),
+                            format!("object link `{}` is not an index (ignored)", kv.value()),
                         );
                         d.context = ctx.to_vec();
                     }
@@ -879,7 +890,8 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
         built.push(obj);
     }
     if model.objects.is_empty() {
-        model.objects = ObjectMap::from_values(built);
+        // (One object per object section: no index twice.)
+        model.objects = ObjectMap::from_unique_values(built);
     } else {
         model.objects.extend(built.into_iter().map(|o| (o.index, o)));
     }
@@ -904,6 +916,13 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
         d.hint =
             Some(format!("add the object section [{index:04X}] with ParameterName, ObjectType and SubNumber").into());
     }
+    cx.pool.lists = super::pool::ObjectLists {
+        objects: reuse(objects),
+        subs: reuse(by_object),
+        sub_sections: reuse(subs),
+        sub_indices,
+        object_indices,
+    };
 }
 
 fn build_object(
@@ -918,7 +937,7 @@ fn build_object(
     let ctx = Crumbs::object_named_by(index, sec.entries, sec.name);
     let keys = match_keys(cx, sec, &OBJ_KEYS, ctx, true);
     let mut name = match keys.get(K_NAME) {
-        Some(kv) => Name::from(kv.value),
+        Some(kv) => Name::from(kv.value()),
         None => {
             let d = cx.emit(codes::E0201, Some(sec.name_span), format!("[{}] lacks ParameterName", sec.name));
             d.hint = Some("add `ParameterName=...`".into());
@@ -937,7 +956,7 @@ fn build_object(
                     let d = cx.emit(
                         codes::E0203,
                         Some(kv.value_span(&cx.src.text)),
-                        format!("ObjectType `{}` is not an object code; {} assumed", kv.value, otype(assumed)),
+                        format!("ObjectType `{}` is not an object code; {} assumed", kv.value(), otype(assumed)),
                     );
                     d.hint = Some("object codes are 0x0 NULL, 0x2 DOMAIN, 0x5 DEFTYPE, 0x6 DEFSTRUCT, 0x7 VAR, 0x8 ARRAY, 0x9 RECORD".into());
                     d.context = ctx.to_vec();
@@ -981,7 +1000,7 @@ fn build_object(
             // CompactSubObj=n adds sub-indices 0..=n (a sub-object section may override one),
             // unless the file is past its bound of implicit elements (E0222): then no room is
             // reserved for them either (7,500 arrays reserving 256 entries each are 200 MB).
-            let compact = keys.get(K_COMPACT).and_then(|kv| value::parse_plain_uint(kv.value)).map_or(0, |(n, _)| n);
+            let compact = keys.get(K_COMPACT).and_then(|kv| value::parse_plain_uint(kv.value())).map_or(0, |(n, _)| n);
             let compact = compact.min(0xFF) as usize;
             let implied = if cx.implicit_exceeded || compact > cx.implicit_left { 0 } else { compact };
             subs.len() + 1 + implied
@@ -1037,7 +1056,7 @@ fn build_object(
             let d = cx.emit(
                 codes::E0216,
                 Some(kv.value_span(&cx.src.text)),
-                format!("ObjFlags `{}` is not a number (kept as text)", kv.value),
+                format!("ObjFlags `{}` is not a number (kept as text)", kv.value()),
             );
             d.context = ctx.to_vec();
             obj.extra.push(owned(kv));
@@ -1050,7 +1069,7 @@ fn build_object(
             let d = cx.emit(
                 codes::E0209,
                 Some(kv.value_span(&cx.src.text)),
-                format!("SubNumber `{}` is not a number 0..=256", kv.value),
+                format!("SubNumber `{}` is not a number 0..=256", kv.value()),
             );
             d.context = ctx.to_vec();
             obj.extra.push(owned(kv));
@@ -1075,7 +1094,7 @@ fn build_object(
             let d = cx.emit(
                 codes::E0213,
                 Some(kv.value_span(&cx.src.text)),
-                format!("CompactSubObj `{}` is not a number 0..=255", kv.value),
+                format!("CompactSubObj `{}` is not a number 0..=255", kv.value()),
             );
             d.context = ctx.to_vec();
             obj.extra.push(owned(kv));
@@ -1125,7 +1144,7 @@ fn build_object(
             let d = cx.emit(
                 codes::E0218,
                 Some(kv.value_span(&cx.src.text)),
-                format!("sub-object ObjectType `{}` is not 0x7 (VAR)", kv.value),
+                format!("sub-object ObjectType `{}` is not 0x7 (VAR)", kv.value()),
             );
             d.context = sctx.to_vec();
         }
@@ -1229,7 +1248,7 @@ fn expand_compact(
     if let Some(ns) = names {
         for (k, kv) in numbered(cx, ns, &NR_OF_ENTRIES, ctx) {
             match obj.subs.get_mut(&SubIndex(k.min(256) as u8)).filter(|_| (1..=n as u32).contains(&k)) {
-                Some(e) => e.name = Name::from(kv.value),
+                Some(e) => e.name = Name::from(kv.value()),
                 None => {
                     let d = cx.emit(
                         codes::E0214,
@@ -1260,7 +1279,7 @@ fn expand_compact(
             if let Some(e) = obj.subs.get_mut(&SubIndex(k as u8)) {
                 match v {
                     Ok(v) => e.set_parameter_value(v),
-                    Err(()) => e.extras_mut().extra.push(("ParameterValue".to_owned(), kv.value.to_owned())),
+                    Err(()) => e.extras_mut().extra.push(("ParameterValue".to_owned(), kv.value().to_owned())),
                 }
             }
         }
@@ -1361,7 +1380,7 @@ mod tests {
         let src = crate::source::SourceFile::decode("t.eds", b"DefaultValue=\n");
         let text = src.text.clone();
         let kv = Kv::new(&text, crate::source::Span::new(0, 12), crate::source::Span::new(13, 13));
-        assert_eq!(kv.value, "");
+        assert_eq!(kv.value(), "");
         let mut cx = Ctx::new(&src, crate::Strictness::default());
         for code in 0..=u16::MAX {
             let ty = DataType::from_code(code);

@@ -10,41 +10,94 @@ use crate::codes;
 use crate::model::Category;
 use crate::source::{Encoding, LineCol, Span};
 
-/// One `key=value` entry: its key and value, slices of the source text, 32 bytes. Their
+/// One `key=value` entry: its key and value, slices of the source text ([`Kv::key`],
+/// [`Kv::value`]), in 20 bytes: where the key starts, its length, how far after it the value
+/// starts and the value's length (a text's positions are `u32`, as its [`Span`]s are). Their
 /// spans follow from where they lie in the text ([`Kv::key_span`]), and the occurrence of a
 /// repeated section an entry came from from where the section's headers lie
-/// ([`report_duplicate`]): the entries of a file, which pass 1 writes and every later pass
-/// reads, took 40 bytes each with those stored, about twice the size of the file, all of it
-/// fresh memory for the first (largest) file a process reads.
-#[derive(Clone, Copy, Debug)]
+/// ([`report_duplicate`]). The entries of a file, which pass 1 writes and every later pass
+/// reads, are the largest buffer lowering writes, about twice the size of the file with 32
+/// bytes an entry (two `&str`), all of it fresh memory (a page fault every 4 KiB) for the
+/// first (largest) file a process reads, and again on each thread that reads files.
+#[derive(Clone, Copy)]
+#[repr(C, packed(4))]
 pub(crate) struct Kv<'a> {
-    pub key: &'a str,
-    pub value: &'a str,
+    /// The first byte of the key.
+    key_at: *const u8,
+    key_len: u32,
+    /// The value starts this many bytes after the key.
+    value_off: u32,
+    value_len: u32,
+    text: std::marker::PhantomData<&'a str>,
 }
 
-const _: () = assert!(std::mem::size_of::<Kv<'_>>() <= 32);
+const _: () = assert!(std::mem::size_of::<Kv<'_>>() == 20);
 
 impl<'a> Kv<'a> {
     /// An entry whose key and value are `key` and `value` of `text` (spans of the same text;
-    /// a span that does not fit it gives an empty slice of it).
+    /// a span that does not fit it gives an empty slice of it; a value before its key, which
+    /// no line has, an empty one after the key).
     pub fn new(text: &'a str, key: Span, value: Span) -> Self {
         let slice = |s: Span| {
             let (start, end) = (s.start as usize, s.end as usize);
             text.get(start..end).or_else(|| text.get(start..start)).unwrap_or(&text[text.len()..])
         };
-        Kv { key: slice(key), value: slice(value) }
+        let key = slice(key);
+        let mut value = slice(value);
+        if (value.as_ptr() as usize) < key.as_ptr() as usize {
+            value = &key[key.len()..];
+        }
+        Kv::of(key, value)
+    }
+
+    /// The entry of `key` and `value`, slices of one text, the value not before the key (as
+    /// on every line, where the key comes before the `=` and the value after it).
+    #[inline(always)]
+    pub fn of(key: &'a str, value: &'a str) -> Self {
+        let value_off = (value.as_ptr() as usize).wrapping_sub(key.as_ptr() as usize);
+        debug_assert!(value_off <= u32::MAX as usize && value.len() <= u32::MAX as usize);
+        Kv {
+            key_at: key.as_ptr(),
+            key_len: key.len() as u32,
+            value_off: value_off as u32,
+            value_len: value.len() as u32,
+            text: std::marker::PhantomData,
+        }
+    }
+
+    /// The key.
+    #[inline(always)]
+    pub fn key(&self) -> &'a str {
+        let (at, len) = (self.key_at, self.key_len as usize);
+        // SAFETY: `at` and `len` are the address and length of a `&'a str` ([`Kv::of`]).
+        unsafe { std::str::from_utf8_unchecked(std::slice::from_raw_parts(at, len)) }
+    }
+
+    /// The value.
+    #[inline(always)]
+    pub fn value(&self) -> &'a str {
+        let (at, off, len) = (self.key_at, self.value_off as usize, self.value_len as usize);
+        // SAFETY: the value is a `&'a str` that starts `off` bytes after the key's first byte,
+        // in the same text, and is `len` bytes long ([`Kv::of`]): `at + off` is its address.
+        unsafe { std::str::from_utf8_unchecked(std::slice::from_raw_parts(at.add(off), len)) }
     }
 
     /// The span of the key in `text`, the text it is a slice of.
     #[inline]
     pub fn key_span(&self, text: &str) -> Span {
-        span_in(text, self.key)
+        span_in(text, self.key())
     }
 
     /// The span of the value in `text`, the text it is a slice of.
     #[inline]
     pub fn value_span(&self, text: &str) -> Span {
-        span_in(text, self.value)
+        span_in(text, self.value())
+    }
+}
+
+impl std::fmt::Debug for Kv<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Kv").field("key", &self.key()).field("value", &self.value()).finish()
     }
 }
 
@@ -134,7 +187,8 @@ pub(crate) struct KindIndex {
 }
 
 impl KindIndex {
-    /// Empties the index (keeping its memory) for a file of about `n` sections, with room in
+    /// Empties the index (keeping its memory) for a file of about `n` sections (the room the
+    /// hash map is given when the sections come out of order), with room in
     /// the sorted vector for `room` (an emptied vector too small is replaced, not grown: growing
     /// would copy its old block onto fresh pages).
     fn reset(&mut self, n: usize, room: usize) {
@@ -266,6 +320,8 @@ pub(crate) struct Scratch {
     /// grows is replaced, and its replacement's pages are fresh again, while room that is never
     /// written costs no memory (only address space).
     pub room_for: usize,
+    /// The buffers of the models given back ([`crate::Reader::recycle`]).
+    pub pool: super::pool::Pool,
 }
 
 impl Scratch {
@@ -554,15 +610,23 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     let room = text.len().max(scratch.room_for);
     let mut heads: Vec<Head<'a>> = with_room(reuse(std::mem::take(&mut scratch.heads)), room / 48 + 8);
     let mut by_kind = std::mem::take(&mut scratch.by_kind);
-    by_kind.reset(sections, room / 48 + 8);
+    // (The hash map of sections, for files whose sections are not in order, a third of the
+    // corpus, is sized for about as many sections as a file has on average, not at most: its
+    // buckets are written all over, so that each page of a map sized for 2.5 times the
+    // sections is touched all the same, and a map too small only grows once; the rounding of
+    // its size to a power of two leaves room for the denser files.)
+    by_kind.reset(text.len() / 128 + 8, room / 48 + 8);
     // Sections of unknown kind, by name in ASCII lower case (names are matched ignoring ASCII
     // case). Real files have few; a file of many must not cost a scan of all the others each,
     // and the names are the file's choice: the standard (keyed) hasher, not `FastMap`'s.
     let mut unknown: std::collections::HashMap<NameKey, usize> = std::collections::HashMap::new();
     let mut entries: Vec<Kv<'a>> = with_room(reuse(std::mem::take(&mut scratch.entries)), room / 10 + 8);
     // Each section header starts a run of entries: (section, first entry, where the header's
-    // name starts). A run ends where the next begins.
-    let mut runs: Vec<(u32, u32, u32)> = Vec::with_capacity(sections);
+    // name starts). A run ends where the next begins. Until a section is repeated, each run is
+    // a section of its own, in order, and is kept in the section's head (the first entry in
+    // the start of its range; the header in its name's span): the list of runs is only made
+    // (from the heads) when a section comes again, which few files have.
+    let mut runs: Vec<(u32, u32, u32)> = Vec::new();
     let mut repeated = false;
     // Whether the following entries belong to a section.
     let mut current = false;
@@ -599,21 +663,26 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
                 },
                 k => by_kind.enter(k, heads.len()),
             };
-            let i = match existing {
+            let first = entries.len();
+            match existing {
                 Some(i) => {
-                    repeated = true;
+                    if !repeated {
+                        repeated = true;
+                        runs = runs_of_heads(&heads, sections);
+                    }
                     section_again(cx, name, name_str, heads[i].at.line);
-                    i
+                    runs.push((i as u32, first as u32, name.start));
                 }
                 None => {
                     let i = heads.len();
                     let at = LineCol { line: line_starts.len() as u32, col: $col };
-                    heads.push(Head { name: name_str, name_span: name, at, kind, entries: 0..0 });
-                    i
+                    heads.push(Head { name: name_str, name_span: name, at, kind, entries: first..first });
+                    if repeated {
+                        runs.push((i as u32, first as u32, name.start));
+                    }
                 }
-            };
+            }
             current = true;
-            runs.push((i as u32, entries.len() as u32, name.start));
         }};
     }
     // The lines are taken from the lexer one at a time; none is kept. Most lines are plain
@@ -621,7 +690,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     let mut lexer = crate::lex::Lexer::new(text);
     loop {
         if current && let Some(e) = lexer.next_plain_entry() {
-            entries.push(Kv { key: e.key, value: e.value });
+            entries.push(Kv::of(e.key, e.value));
             if e.newline {
                 line_starts.push(e.end);
             }
@@ -678,9 +747,11 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     src.set_line_starts(line_starts);
     let run_end = |r: usize| runs.get(r + 1).map_or(entries.len(), |&(_, start, _)| start as usize);
     if !repeated {
-        // Every section has exactly one run, in order.
-        for r in 0..runs.len() {
-            heads[runs[r].0 as usize].entries = runs[r].1 as usize..run_end(r);
+        // Every section has exactly one run, in order, which ends where the next begins.
+        let mut end = entries.len();
+        for h in heads.iter_mut().rev() {
+            h.entries.end = end;
+            end = h.entries.start;
         }
     } else {
         // Move the entries of each section's runs together, sections in order of first
@@ -701,6 +772,15 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
         cx.header_starts = runs.iter().map(|&(_, _, at)| at).collect();
     }
     Collected { text, entries, heads, by_kind }
+}
+
+/// The runs of entries of `heads`, each section one run, in order (what `collect` lists until
+/// a section is repeated), with room for `room` runs.
+#[cold]
+fn runs_of_heads(heads: &[Head<'_>], room: usize) -> Vec<(u32, u32, u32)> {
+    let mut runs = Vec::with_capacity(room.max(heads.len() + 1));
+    runs.extend(heads.iter().enumerate().map(|(i, h)| (i as u32, h.entries.start as u32, h.name_span.start)));
+    runs
 }
 
 /// The position of the first byte of `b` that is not ASCII: sixty-four bytes at a time
@@ -1016,7 +1096,7 @@ impl<'a, const N: usize> Keys<'a, N> {
 pub(crate) fn parameter_name<'a>(entries: &[Kv<'a>]) -> Option<&'a str> {
     const KEY: &str = "ParameterName";
     let is_name = |k: &str| k.len() == KEY.len() && (k == KEY || k.eq_ignore_ascii_case(KEY));
-    entries.iter().rev().find(|kv| is_name(kv.key)).map(|kv| kv.value)
+    entries.iter().rev().find(|kv| is_name(kv.key())).map(|kv| kv.value())
 }
 
 /// Matches a section's entries against `known` key names (case-insensitively), reporting case
@@ -1039,25 +1119,25 @@ pub(crate) fn match_keys<'a, const N: usize>(
     let mut numbered = true;
     let names = &known.names;
     for kv in sec.entries {
-        let found_key = known.find(kv.key);
+        let found_key = known.find(kv.key());
         let mut hit = found_key.map(|(i, _)| i);
         if let Some((i, exact)) = found_key {
             if !exact && !cx.skips(codes::E0104) {
                 let d = cx.emit(
                     codes::E0104,
                     Some(kv.key_span(&cx.src.text)),
-                    super::cat(["key `", kv.key, "` is written `", names[i], "` in CiA 306"]),
+                    super::cat(["key `", kv.key(), "` is written `", names[i], "` in CiA 306"]),
                 );
                 d.hint = Some(super::cat(["write `", names[i], "`"]).into());
                 d.context = context.to_vec();
             }
         } else {
-            hit = known.find_loose(kv.key);
+            hit = known.find_loose(kv.key());
             if let Some(i) = hit {
                 let d = cx.emit(
                     codes::E0103,
                     Some(kv.key_span(&cx.src.text)),
-                    format!("key `{}` is spelled `{}` in CiA 306", kv.key, names[i]),
+                    format!("key `{}` is spelled `{}` in CiA 306", kv.key(), names[i]),
                 );
                 d.hint = Some(format!("write `{}`", names[i]).into());
                 d.context = context.to_vec();
@@ -1070,8 +1150,8 @@ pub(crate) fn match_keys<'a, const N: usize>(
                 }
                 found[i] = Some(kv);
             }
-            None if numbered && is_number(kv.key, unknown.len() + 1) => {
-                debug_assert!(!unknown.iter().any(|u| u.key.eq_ignore_ascii_case(kv.key)), "{}", kv.key);
+            None if numbered && is_number(kv.key(), unknown.len() + 1) => {
+                debug_assert!(!unknown.iter().any(|u| u.key().eq_ignore_ascii_case(kv.key())), "{}", kv.key());
                 unknown.push(kv);
                 if report_unknown {
                     report_unknown_key(cx, kv, sec, context);
@@ -1083,18 +1163,18 @@ pub(crate) fn match_keys<'a, const N: usize>(
                     // Sized for every entry of the section, so that neither grows again.
                     unknown.reserve(sec.entries.len());
                     let mut map = FastMap::with_capacity_and_hasher(sec.entries.len(), Default::default());
-                    map.extend(unknown.iter().enumerate().map(|(i, u)| (Caseless(u.key), i)));
+                    map.extend(unknown.iter().enumerate().map(|(i, u)| (Caseless(u.key()), i)));
                     last_unknown = Some(map);
                 }
                 let prev = match &mut last_unknown {
-                    Some(map) => match map.entry(Caseless(kv.key)) {
+                    Some(map) => match map.entry(Caseless(kv.key())) {
                         std::collections::hash_map::Entry::Occupied(e) => Some(*e.get()),
                         std::collections::hash_map::Entry::Vacant(e) => {
                             e.insert(unknown.len());
                             None
                         }
                     },
-                    None => unknown.iter().position(|u| u.key.eq_ignore_ascii_case(kv.key)),
+                    None => unknown.iter().position(|u| u.key().eq_ignore_ascii_case(kv.key())),
                 };
                 // A repeated key keeps its first place with the later value, as a known key
                 // does: the model (and a file written from it) has each key once.
@@ -1119,7 +1199,7 @@ fn report_unknown_key(cx: &mut Ctx<'_>, kv: &Kv<'_>, sec: &Section<'_>, context:
     let d = cx.emit(
         codes::E0102,
         Some(kv.key_span(&cx.src.text)),
-        format!("key `{}` is not a CiA 306 key of [{}]; it is kept as written", kv.key, sec.name),
+        format!("key `{}` is not a CiA 306 key of [{}]; it is kept as written", kv.key(), sec.name),
     );
     d.context = context.to_vec();
 }
@@ -1175,7 +1255,12 @@ pub(crate) fn report_duplicate(cx: &mut Ctx<'_>, prev: &Kv<'_>, kv: &Kv<'_>, con
     let d = cx.emit(
         codes::E0007,
         Some(kv.key_span(&cx.src.text)),
-        format!("key `{}` is set again (first at line {}); the later value `{}` is used", kv.key, first.line, kv.value),
+        format!(
+            "key `{}` is set again (first at line {}); the later value `{}` is used",
+            kv.key(),
+            first.line,
+            kv.value()
+        ),
     );
     d.hint = Some("remove one of the two entries".into());
     d.context = context.to_vec();
@@ -1184,6 +1269,39 @@ pub(crate) fn report_duplicate(cx: &mut Ctx<'_>, prev: &Kv<'_>, kv: &Kv<'_>, con
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An entry gives back the key and value it was made of, and their spans, whatever their
+    /// lengths and places in the text (multi-byte text, empty parts, parts at either end of the
+    /// text, spans that do not fit it).
+    #[test]
+    fn an_entry_gives_back_its_key_and_value() {
+        let text = "Ä=ü;\r\nParameterName = Motor ☃ speed\nx=\n=\n".repeat(30);
+        let len = text.len() as u32;
+        let mut rng = crate::test_rng(0x5EED_0FC0_FFEE);
+        let mut boundary = |max: u32| loop {
+            let at = rng(max as u64 + 1) as u32;
+            if text.is_char_boundary(at as usize) {
+                return at;
+            }
+        };
+        for _ in 0..5000 {
+            let (a, b, c, d) = (boundary(len), boundary(len), boundary(len), boundary(len));
+            let mut at = [a, b, c, d];
+            at.sort_unstable();
+            let (key, value) = (Span::new(at[0], at[1]), Span::new(at[2], at[3]));
+            let kv = Kv::new(&text, key, value);
+            assert_eq!(kv.key(), &text[at[0] as usize..at[1] as usize]);
+            assert_eq!(kv.value(), &text[at[2] as usize..at[3] as usize]);
+            assert_eq!((kv.key_span(&text), kv.value_span(&text)), (key, value));
+            assert_eq!(Kv::of(kv.key(), kv.value()).value_span(&text), value);
+        }
+        // A span past the end is an empty part at its start, or at the end of the text.
+        let kv = Kv::new(&text, Span::new(len - 1, len + 5), Span::new(len + 2, len + 9));
+        assert_eq!((kv.key(), kv.value()), ("", ""));
+        assert_eq!(kv.key_span(&text), Span::new(len - 1, len - 1));
+        assert_eq!(kv.value_span(&text), Span::new(len, len));
+        assert_eq!(format!("{:?}", Kv::new("K=V", Span::new(0, 1), Span::new(2, 3))), r#"Kv { key: "K", value: "V" }"#);
+    }
 
     /// A buffer of entries borrowed from one text is kept, memory and all, for the next text.
     #[test]
@@ -1225,7 +1343,7 @@ mod tests {
             for kv in sec.entries {
                 let (key, value) = (kv.key_span(src_text), kv.value_span(src_text));
                 assert_eq!(general.get(&key.start), Some(&(key, value)), "{text:?}");
-                assert_eq!((kv.key, kv.value), (doc.source.slice(key), doc.source.slice(value)), "{text:?}");
+                assert_eq!((kv.key(), kv.value()), (doc.source.slice(key), doc.source.slice(value)), "{text:?}");
                 assert!(seen.insert(key.start), "{text:?}");
             }
         }
@@ -1295,6 +1413,61 @@ mod tests {
             let orphans = lines.iter().take_while(|&&(_, k)| k != 0).count();
             proptest::prop_assert_eq!(repeats, reference_repeats(&lines[orphans..]).iter().map(|n| n + orphans as u32).collect::<Vec<_>>(), "{:?}", text);
         }
+        /// Each section holds the entries of all its occurrences, in file order, sections in the
+        /// order they first come, with where each header was (when a section comes again),
+        /// whether or not and wherever sections are repeated (sections `[Xn]`, keys `Kn`;
+        /// 0 is a header), in one reader and another reusing its buffers.
+        #[test]
+        fn sections_hold_the_entries_of_all_their_occurrences(
+            files in proptest::collection::vec(proptest::collection::vec((0..4usize, 0..4usize), 0..40), 1..4),
+        ) {
+            let mut scratch = Scratch::default();
+            for lines in &files {
+                let text: String = lines
+                    .iter()
+                    .enumerate()
+                    .map(|(n, &(s, k))| if k == 0 { format!("[X{s}]\n") } else { format!("K{k}=v{n}\n") })
+                    .collect();
+                // The reference: sections by first occurrence, each with its entries in order.
+                let mut order: Vec<usize> = Vec::new();
+                let mut want: Vec<Vec<String>> = Vec::new();
+                let mut headers: Vec<u32> = Vec::new();
+                let mut current = None;
+                let mut at = 0u32;
+                for (n, &(s, k)) in lines.iter().enumerate() {
+                    if k == 0 {
+                        let i = order.iter().position(|&o| o == s).unwrap_or_else(|| {
+                            order.push(s);
+                            want.push(Vec::new());
+                            order.len() - 1
+                        });
+                        current = Some(i);
+                        headers.push(at + 1);
+                    } else if let Some(i) = current {
+                        want[i].push(format!("K{k}=v{n}"));
+                    }
+                    at += if k == 0 { 5 } else { format!("K{k}=v{n}\n").len() as u32 };
+                }
+                let repeated = headers.len() > order.len();
+                let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", &text));
+                let mut cx = Ctx::new(&doc.source, crate::Strictness::Lenient);
+                let mut collected = collect(&doc, &mut cx, &mut scratch);
+                let secs = collected.sections();
+                let got: Vec<Vec<String>> = secs
+                    .list
+                    .iter()
+                    .map(|s| s.entries.iter().map(|kv| format!("{}={}", kv.key(), kv.value())).collect())
+                    .collect();
+                proptest::prop_assert_eq!(&got, &want, "{:?}", text);
+                let names: Vec<String> = secs.list.iter().map(|s| s.name.to_string()).collect();
+                proptest::prop_assert_eq!(names, order.iter().map(|s| format!("X{s}")).collect::<Vec<_>>());
+                let starts = if repeated { headers } else { Vec::new() };
+                proptest::prop_assert_eq!(&cx.header_starts, &starts, "{:?}", text);
+                let list = reuse(secs.list);
+                scratch.keep(collected, list);
+            }
+        }
+
         /// Numbered keys (`1`, `2`, ... in order, which skip the search for repeats) are kept and
         /// reported as any unknown keys are: the same keys with a letter in front, which never
         /// look numbered, give the same kept keys, repeats and reports.
@@ -1540,8 +1713,8 @@ mod tests {
             let keys = match_keys(&mut cx, &secs.list[0], &KeySet::new(["SupportedObjects"]), Crumbs::default(), false);
             // Each key once: `2` and `xY` keep their first place with their later values.
             assert_eq!(keys.unknown.len(), n + 1);
-            assert_eq!(keys.unknown[1].value, "0x2000");
-            assert_eq!(keys.unknown[n].value, "2");
+            assert_eq!(keys.unknown[1].value(), "0x2000");
+            assert_eq!(keys.unknown[n].value(), "2");
             let repeats: Vec<_> = cx
                 .diags
                 .iter()

@@ -121,7 +121,7 @@ fn value_span(secs: &Sections<'_>, obj: &Object, e: &Entry) -> Span {
     let find = |kind: Kind, keys: &[&str]| {
         let sec = secs.get(kind)?;
         keys.iter().find_map(|k| {
-            sec.entries.iter().rev().find(|kv| kv.key.eq_ignore_ascii_case(k)).map(|kv| kv.value_span(secs.text))
+            sec.entries.iter().rev().find(|kv| kv.key().eq_ignore_ascii_case(k)).map(|kv| kv.value_span(secs.text))
         })
     };
     let explicit =
@@ -182,7 +182,7 @@ fn pdos(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
         if declared as u32 != present && !(compact && present < declared as u32) {
             let span = secs
                 .get(Kind::DeviceInfo)
-                .and_then(|s| s.entries.iter().rev().find(|kv| kv.key.eq_ignore_ascii_case(key)))
+                .and_then(|s| s.entries.iter().rev().find(|kv| kv.key().eq_ignore_ascii_case(key)))
                 .map(|kv| kv.value_span(&cx.src.text));
             let d = cx.emit(codes::E0504, span, format!("{key}={declared} but the file has {present} {what}"));
             d.hint = Some(format!("set {key}={present}").into());
@@ -235,7 +235,7 @@ fn fixed_mapping(secs: &Sections<'_>, model: &Model, cx: &mut Ctx<'_>) {
     let Some(&(obj, e)) = writable.first() else { return };
     let span = secs
         .get(Kind::DeviceInfo)
-        .and_then(|s| s.entries.iter().rev().find(|kv| kv.key.eq_ignore_ascii_case("Granularity")))
+        .and_then(|s| s.entries.iter().rev().find(|kv| kv.key().eq_ignore_ascii_case("Granularity")))
         .map(|kv| kv.value_span(&cx.src.text));
     let more = match writable.len() {
         1 => String::new(),
