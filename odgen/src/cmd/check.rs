@@ -96,6 +96,13 @@ struct Report {
 /// as it grew made fresh pages and copies of, file after file.
 const BLOCK: usize = 1 << 16;
 
+/// A report shorter than this is copied out of its block ([`Blocks::finish`]).
+const SMALL: usize = 16 << 10;
+
+/// At most this many written blocks are kept to render into again (as many as two files' worth
+/// in flight on each thread; the rest are freed).
+const SPARE: usize = 8;
+
 /// The blocks a report is rendered into, taken from the ones written out before.
 struct Blocks<'a> {
     done: Vec<String>,
@@ -128,7 +135,21 @@ impl<'a> Blocks<'a> {
         &mut self.current
     }
 
+    /// The report's blocks. A report that fills less than [`SMALL`] of its one block is copied
+    /// into a string of its own length and the block goes back to the spare ones at once: most
+    /// files' reports are a few KiB, and each would otherwise keep a block of its own, and its
+    /// fresh pages, until the writer gets to it (the threads take the files largest first, the
+    /// writer writes them in the order given).
     fn finish(mut self) -> Vec<String> {
+        if self.done.is_empty() && self.current.len() < SMALL {
+            let report = self.current.as_str().to_owned();
+            self.current.clear();
+            let mut spare = self.spare.lock().unwrap_or_else(|e| e.into_inner());
+            if spare.len() < SPARE {
+                spare.push(self.current);
+            }
+            return vec![report];
+        }
         self.done.push(self.current);
         self.done
     }
@@ -262,8 +283,8 @@ pub fn run(args: Args) -> ExitCode {
             for mut block in report.blocks {
                 out.push(&block);
                 block.clear();
-                // (As many as two files' worth in flight on each thread; the rest are freed.)
-                if spare.len() < 8 {
+                // (A report copied out of its block is no block: it is freed.)
+                if spare.len() < SPARE && block.capacity() >= BLOCK {
                     spare.push(block);
                 }
             }
@@ -418,4 +439,38 @@ fn summary(c: &Counts, level: Level) -> String {
         parts.push(part(c.notes, "note", Severity::Note, "--notes"));
     }
     if parts.is_empty() { "no problems".to_owned() } else { parts.join(", ") }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A report of one block shorter than `SMALL` comes back as a string of its own length and
+    /// leaves its block to the spare ones; a longer one keeps its blocks, in order; the text is
+    /// the same either way.
+    #[test]
+    fn small_reports_leave_their_block_at_once() {
+        let spare: Spare = std::sync::Mutex::new(Vec::new());
+        for len in [0, 1, 100, SMALL - 1, SMALL, BLOCK - 1, BLOCK, 3 * BLOCK + 5] {
+            spare.lock().unwrap().clear();
+            let mut blocks = Blocks::new(&spare);
+            let text: String = (0..len).map(|i| char::from(b'a' + (i % 26) as u8)).collect();
+            // Pieces of at most a few KiB, as diagnostics are.
+            for piece in text.as_bytes().chunks(3000) {
+                blocks.text().push_str(std::str::from_utf8(piece).unwrap());
+            }
+            let report = blocks.finish();
+            assert_eq!(report.concat(), text, "len {len}");
+            let spare_now = spare.lock().unwrap();
+            if len < SMALL {
+                assert_eq!(report.len(), 1);
+                assert!(report[0].capacity() < SMALL, "len {len}: capacity {}", report[0].capacity());
+                assert_eq!(spare_now.len(), 1, "len {len}");
+                assert!(spare_now[0].is_empty() && spare_now[0].capacity() >= BLOCK);
+            } else {
+                assert!(spare_now.is_empty(), "len {len}");
+                assert!(report.iter().all(|b| b.capacity() >= BLOCK), "len {len}");
+            }
+        }
+    }
 }
