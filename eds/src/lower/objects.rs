@@ -886,7 +886,7 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
                 }
             }
         }
-        obj.category = lists.listed.get(&index).map(|&(c, _)| c).unwrap_or_else(|| expected_category(index));
+        obj.category = lists.category(index).unwrap_or_else(|| expected_category(index));
         built.push(obj);
     }
     if model.objects.is_empty() {
