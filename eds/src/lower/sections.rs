@@ -1017,6 +1017,13 @@ impl<const N: usize> KeySet<N> {
         None
     }
 
+    /// Whether `key` is spelled exactly as key number `i` (false when there is no such key, or
+    /// it is longer than 16 bytes: compared by its two words, as [`KeySet::find`] does).
+    #[inline(always)]
+    pub fn is_exactly(&self, i: usize, key: &str) -> bool {
+        i < N && key.len() == self.names[i].len() && key.len() <= 16 && key_words(key.as_bytes()) == self.words[i]
+    }
+
     /// The number of the key that equals `key` ignoring ASCII case, and whether `key` is
     /// spelled exactly like it.
     #[inline]
@@ -1135,10 +1142,15 @@ pub(crate) fn fill_keys<'a, const N: usize>(
     // them and is kept without a search.
     let mut numbered = true;
     let names = &known.names;
+    // The key expected next: the one after the last found, in the key set's order, which is
+    // the order CiA 306 and nearly every file write them in (ParameterName, ObjectType,
+    // DataType, AccessType, DefaultValue, PDOMapping): compared first, as spelled.
+    let mut next = 0;
     for (at, kv) in sec.entries.iter().enumerate() {
-        let found_key = known.find(kv.key());
+        let found_key = if known.is_exactly(next, kv.key()) { Some((next, true)) } else { known.find(kv.key()) };
         let mut hit = found_key.map(|(i, _)| i);
         if let Some((i, exact)) = found_key {
+            next = i + 1;
             if !exact && !cx.skips(codes::E0104) {
                 let d = cx.emit(
                     codes::E0104,
@@ -1444,17 +1456,22 @@ mod tests {
 
     proptest::proptest! {
         /// `fill_keys` (into a `Keys` reused from the section before, as objects' sub-objects
-        /// are matched) and `match_keys` find the keys the rules find, with the same reports,
+        /// are matched; the key expected next compared first) and `match_keys` find the keys
+        /// the rules find, with the same reports,
         /// for keys spelled as CiA 306 does, in other cases, loosely, numbered and unknown
         /// (repeated too; the unknown ones that share a length and differ in their last bytes,
         /// as `Dummy0001` and `BaudRate_125` do).
         #[test]
         fn matched_keys_are_what_the_rules_find(
             sections in proptest::collection::vec(proptest::collection::vec(
-                "ParameterName|parametername|Parameter_Name|DataType|DATATYPE|VendorName|Vendor Name|LSS_Supported|LSSSupported|Dummy000[0-9]|DUMMY000[0-9]|BaudRate_[0-9]{1,4}|[1-9][0-9]?|[a-zA-Z_]{1,3}",
+                "ParameterName|parametername|Parameter_Name|DynamicChannelsSupported|DynamicCXannelsSupported|DataType|DATATYPE|DataTypf|VendorName|Vendor Name|LSS_Supported|LSSSupported|Dummy000[0-9]|DUMMY000[0-9]|BaudRate_[0-9]{1,4}|[1-9][0-9]?|[a-zA-Z_]{1,3}",
                 0..24), 1..4),
         ) {
-            const KNOWN: KeySet<5> = KeySet::new(["ParameterName", "DataType", "VendorName", "LSS_Supported", "BaudRate"]);
+            // (In an order that the keys drawn often follow, so that the key expected next is
+            // often the one found, and often not; one longer than 16 bytes, and a key that has
+            // its first and last eight bytes but is not it.)
+            const KNOWN: KeySet<6> =
+                KeySet::new(["ParameterName", "DynamicChannelsSupported", "DataType", "VendorName", "LSS_Supported", "BaudRate"]);
             let mut text = String::new();
             for (n, keys) in sections.iter().enumerate() {
                 text.push_str(&format!("[X{n}]\n"));
