@@ -688,7 +688,7 @@ impl Lists {
 /// high byte) made as the set needs them: a file lists a few hundred objects in a few dozen such
 /// blocks, so that the set is a kilobyte or two, on pages in use anyway (a bit for each of the
 /// 65,536 indices, 8 KiB kept from file to file, cost the run two fresh pages and displaced
-/// other blocks: seven page faults more than the hash map it replaces). Kept from one file to
+/// other blocks: four to seven page faults more than the hash map it replaces). Kept from one file to
 /// the next ([`Lists::give_back`]) and emptied by the indices put in it, not by zeroing it.
 #[derive(Default)]
 pub(crate) struct IndexSet {
