@@ -1,7 +1,7 @@
 //! Pass 2: the information sections and the object lists.
 
 use super::sections::{KeySet, Keys, Kind, Kv, Section, Sections, match_keys, report_duplicate};
-use super::{Crumbs, Ctx};
+use super::{Crumbs, Ctx, FastMap};
 use crate::codes;
 use crate::model::{Category, Commissioning, DeviceInfo, ExtraSection, FileInfo, Model, Radix};
 use crate::source::Span;
@@ -778,6 +778,8 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
         .sum();
     lists.listed.reserve(listed);
     lists.set = std::mem::take(&mut cx.pool.listed);
+    // (Keyed by `u32`, as the index of sections is: one instance of the map's code for both.)
+    let mut at: Option<FastMap<u32, u32>> = None;
     for cat in [Category::Mandatory, Category::Optional, Category::Manufacturer] {
         let Some(sec) = secs.get(Kind::List(cat)) else { continue };
         lists.present[category_slot(cat)] = true;
@@ -845,8 +847,16 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                 Some(numbers) => numbers.push(n),
             }
             if lists.set.insert(index) {
-                // (A repeat: rare, and its first entry found by a search.)
-                if let Some(&(_, prev_cat, prev_span)) = lists.listed.iter().find(|&&(i, _, _)| i == index) {
+                // A repeat (rare): its first entry is found in a map of where each index is in
+                // `listed`, made at the file's first repeat (a file of many repeats is not
+                // searched for each).
+                let listed = &lists.listed;
+                let at = at.get_or_insert_with(|| {
+                    let mut at = FastMap::with_capacity_and_hasher(listed.len(), Default::default());
+                    at.extend(listed.iter().enumerate().map(|(n, &(i, _, _))| (i as u32, n as u32)));
+                    at
+                });
+                if let Some(&(_, prev_cat, prev_span)) = at.get(&(index as u32)).map(|&n| &listed[n as usize]) {
                     let first = cx.src.line_col(prev_span.start);
                     let d = cx.emit(
                         codes::E0405,
@@ -870,6 +880,9 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                 );
                 d.hint = Some(format!("move it to [{}]", list_name(want)).into());
                 lists.misplaced.push((index, cat));
+            }
+            if let Some(at) = &mut at {
+                at.insert(index as u32, lists.listed.len() as u32);
             }
             lists.listed.push((index, cat, kv.value_span(&cx.src.text)));
         }
@@ -1072,11 +1085,32 @@ mod tests {
                         }
                     }
                 }
+                // The line of each list's entries (lists in file order).
+                let mut lines: Vec<Vec<u32>> = vec![Vec::new(); 3];
+                let mut line = 1;
                 for &c in &order {
                     let mine: Vec<u16> = entries.iter().filter(|&&(e, _)| e == c).map(|&(_, i)| i).collect();
                     text.push_str(&format!("[{}]\nSupportedObjects={}\n", list_name(cats[c]), mine.len()));
+                    line += 2;
                     for (n, i) in mine.iter().enumerate() {
                         text.push_str(&format!("{}=0x{i:04X}\n", n + 1));
+                        lines[c].push(line);
+                        line += 1;
+                    }
+                }
+                // Each repeat's report names the list and line of the index's first entry (lists
+                // read in category order).
+                let mut first: Vec<(u16, usize, u32)> = Vec::new();
+                let mut want_repeats: Vec<String> = Vec::new();
+                for c in [0, 1, 2] {
+                    for (&(_, i), &l) in entries.iter().filter(|&&(e, _)| e == c).zip(&lines[c]) {
+                        match first.iter().find(|&&(f, _, _)| f == i) {
+                            Some(&(_, fc, fl)) => want_repeats.push(format!(
+                                "object 0x{i:04X} is listed again (first in [{}] at line {fl})",
+                                list_name(cats[fc])
+                            )),
+                            None => first.push((i, c, l)),
+                        }
                     }
                 }
                 let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", text.as_str()));
@@ -1094,8 +1128,10 @@ mod tests {
                     proptest::prop_assert_eq!(lists.category(i), want, "{:#06x}", i);
                     proptest::prop_assert_eq!(lists.contains(i), want.is_some());
                 }
-                let repeats = cx.diags.iter().filter(|d| d.code == codes::E0405).count();
-                proptest::prop_assert_eq!(repeats, entries.len() - reference.len());
+                let repeats: Vec<String> =
+                    cx.diags.iter().filter(|d| d.code == codes::E0405).map(|d| d.message.clone()).collect();
+                proptest::prop_assert_eq!(repeats.len(), entries.len() - reference.len());
+                proptest::prop_assert_eq!(repeats, want_repeats);
                 lists.give_back(&mut cx.pool);
                 pool = std::mem::take(&mut cx.pool);
             }
