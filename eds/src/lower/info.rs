@@ -658,7 +658,8 @@ pub(crate) struct Lists {
     pub listed: Vec<(u16, Category, Span)>,
     /// The listed indices.
     set: IndexSet,
-    /// The listed indices whose list is not the one [`expected_category`] gives, with theirs.
+    /// The listed indices whose list is not the one [`expected_category`] gives, with theirs,
+    /// sorted by index (a file may misplace thousands: found by a binary search).
     misplaced: Vec<(u16, Category)>,
 }
 
@@ -674,7 +675,13 @@ impl Lists {
         if !self.contains(index) {
             return None;
         }
-        Some(self.misplaced.iter().find(|&&(i, _)| i == index).map_or_else(|| expected_category(index), |&(_, c)| c))
+        if self.misplaced.is_empty() {
+            return Some(expected_category(index));
+        }
+        Some(match self.misplaced.binary_search_by_key(&index, |&(i, _)| i) {
+            Ok(at) => self.misplaced[at].1,
+            Err(_) => expected_category(index),
+        })
     }
 
     /// Gives the set of indices back to `pool` for the next file, emptied.
@@ -934,6 +941,10 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                 d.hint = Some(format!("add `SupportedObjects={}`", listed_count).into());
             }
         }
+    }
+    // (Each index once: no two entries with one index.)
+    if lists.misplaced.len() > 1 {
+        lists.misplaced.sort_unstable_by_key(|&(i, _)| i);
     }
     lists
 }
