@@ -29,7 +29,7 @@
 //! never uses ASCII bytes inside a multi-byte character, so byte positions are always char
 //! boundaries where the grammar cuts. The line's first byte picks the rule, so each byte is
 //! looked at once. The parsers that run over the bulk of the text (`take_till` up to `=` or a
-//! line end) compare sixteen bytes at a time (SSE2 on x86_64, one of the crate's three kinds of
+//! line end) compare sixteen bytes at a time (SSE2 on x86_64, one of the crate's four kinds of
 //! `unsafe` use; eight-byte words elsewhere), and the line end is one match on two bytes. The commonest line,
 //! `Key=Value` with nothing to trim, has a shorter path of its own
 //! ([`Lexer::next_plain_entry`], tested to agree with the general one): on x86_64 it compares
@@ -40,7 +40,9 @@
 //! bytes of the end of the text take the byte-wise scan). It cuts the key and the value out of
 //! the text without checking for char boundaries again (the second: the cuts are at ASCII
 //! bytes the scan found; the third is pass 1's entry, `lower::sections::Kv`, which keeps its
-//! key and value as an address and `u32` lengths and gives them back with `from_raw_parts`).
+//! key and value as an address and `u32` lengths and gives them back with `from_raw_parts`; the
+//! fourth is `source::SourceFile::decode_owned`, which takes a file all of whose bytes are ASCII as
+//! its text without validating it as UTF-8 again).
 //! Trimming looks at the bytes at either end and only falls back to [`str::trim`] when it meets
 //! a non-ASCII byte there (which may be Unicode white space). [`Lexer`] allocates nothing; [`lex`]
 //! allocates the `Vec` of lines and the line index.

@@ -68,7 +68,7 @@ pub(crate) fn lower_reusing(
     let lists = info::lower_object_lists(&secs, &mut cx);
     objects::lower_objects(&secs, &lists, &mut model, &mut cx);
     validate::validate(&secs, &lists, &model, &mut cx);
-    drop(lists);
+    lists.give_back(&mut cx.pool);
     let list = sections::reuse(secs.list);
     scratch.keep(collected, list);
     cx.report_left_out();

@@ -112,6 +112,10 @@ pub struct SourceFile {
     /// Offsets of the line starts; found by the lexer, which looks at every byte anyway, or
     /// computed on first use.
     line_starts: std::sync::OnceLock<Vec<u32>>,
+    /// Whether `text` was found to be all ASCII when it was decoded ([`SourceFile::decode_owned`]
+    /// looks at every byte for that anyway), so that lowering need not look again for the
+    /// first non-ASCII byte (E0009); `false` only means "not known".
+    ascii: bool,
 }
 
 impl SourceFile {
@@ -157,10 +161,24 @@ impl SourceFile {
         if bytes.starts_with(b"\xEF\xBB\xBF") || bytes.starts_with(&[0xFF, 0xFE]) || bytes.starts_with(&[0xFE, 0xFF]) {
             return Self::decode(name, &bytes);
         }
+        // Nearly every file is ASCII, which is valid UTF-8: one fast look at its bytes decides
+        // that, instead of the UTF-8 validation and, for E0009, a second look for a non-ASCII byte.
+        if first_non_ascii(&bytes).is_none() {
+            // SAFETY: every byte is below 0x80, and a sequence of ASCII bytes is valid UTF-8.
+            let text = unsafe { String::from_utf8_unchecked(bytes) };
+            let mut src = Self::from_parts(name.into(), text, Encoding::Utf8, false);
+            src.ascii = true;
+            return src;
+        }
         match String::from_utf8(bytes) {
             Ok(text) => Self::from_parts(name.into(), text, Encoding::Utf8, false),
             Err(e) => Self::decode(name, e.as_bytes()),
         }
+    }
+
+    /// Where the text's first non-ASCII byte is, if it has one.
+    pub(crate) fn first_non_ascii(&self) -> Option<usize> {
+        if self.ascii { None } else { first_non_ascii(self.text.as_bytes()) }
     }
 
     /// Wraps already decoded text.
@@ -169,7 +187,15 @@ impl SourceFile {
     }
 
     fn from_parts(name: String, text: String, encoding: Encoding, bom: bool) -> Self {
-        SourceFile { name, text, encoding, bom, invalid_units: 0, line_starts: std::sync::OnceLock::new() }
+        SourceFile {
+            name,
+            text,
+            encoding,
+            bom,
+            invalid_units: 0,
+            line_starts: std::sync::OnceLock::new(),
+            ascii: false,
+        }
     }
 
     /// The offset of every line start (0 and each offset after a line end).
@@ -255,9 +281,75 @@ impl SourceFile {
     }
 }
 
+/// The position of the first byte of `b` that is not ASCII (0x80 or above), if any.
+///
+/// Blocks of 256 bytes are ORed together first (which the compiler does sixteen bytes at a time
+/// without a branch), and only a block with such a byte is searched byte by byte.
+pub(crate) fn first_non_ascii(b: &[u8]) -> Option<usize> {
+    const BLOCK: usize = 256;
+    let mut blocks = b.chunks_exact(BLOCK);
+    let mut at = 0;
+    for block in &mut blocks {
+        if block.iter().fold(0u8, |acc, &c| acc | c) >= 0x80 {
+            return block.iter().position(|&c| c >= 0x80).map(|i| at + i);
+        }
+        at += BLOCK;
+    }
+    let rest = blocks.remainder();
+    if rest.is_ascii() { None } else { rest.iter().position(|&c| c >= 0x80).map(|i| at + i) }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn first_non_ascii_is_what_a_byte_scan_finds() {
+        for len in [0usize, 1, 15, 16, 63, 64, 65, 127, 128, 200, 255, 256, 257, 511, 512, 700] {
+            for at in (0..len).step_by(7).chain([len.saturating_sub(1)]) {
+                for high in [0x80u8, 0xC3, 0xFF] {
+                    let mut b = vec![b'a'; len];
+                    assert_eq!(first_non_ascii(&b), None);
+                    if len > 0 {
+                        b[at] = high;
+                        if at + 1 < len {
+                            b[len - 1] = 0xFF;
+                        }
+                        assert_eq!(first_non_ascii(&b), b.iter().position(|&c| c >= 0x80), "{len} {at}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn decode_owned_gives_the_text_and_encoding_decode_gives() {
+        let cases: [&[u8]; 8] = [
+            b"",
+            b"[1000]\nA=1\n",
+            "[1000]\nName=Gr\u{fc}\u{df}e\n".as_bytes(),
+            b"\xEF\xBB\xBF[1000]\n",
+            b"Name=Gr\xFC\xDFe\n",
+            b"\xFF\xFEa\0=\0",
+            b"\xFE\xFF\0a\0=",
+            b"abc\x80",
+        ];
+        for bytes in cases {
+            let long: Vec<u8> = b"x".repeat(300).into_iter().chain(bytes.iter().copied()).collect();
+            for b in [bytes.to_vec(), long] {
+                let (a, o) = (SourceFile::decode("a", &b), SourceFile::decode_owned("a", b.clone()));
+                assert_eq!(
+                    (&a.text, a.encoding, a.bom, a.invalid_units),
+                    (&o.text, o.encoding, o.bom, o.invalid_units)
+                );
+                let expect = if a.encoding == Encoding::Utf8 { first_non_ascii(a.text.as_bytes()) } else { None };
+                if a.encoding == Encoding::Utf8 {
+                    assert_eq!(o.first_non_ascii(), expect);
+                    assert_eq!(a.first_non_ascii(), expect);
+                }
+            }
+        }
+    }
 
     #[test]
     fn line_starts_match_a_byte_loop() {

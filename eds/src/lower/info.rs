@@ -644,12 +644,107 @@ pub(crate) fn lower_info(secs: &Sections<'_>, model: &mut Model, cx: &mut Ctx<'_
 }
 
 /// What the object lists say.
+///
+/// Each object of a file is looked up in them (its category, and whether it is listed): a bit
+/// per index answers whether ([`IndexSet`]), and the category is the one CiA 306 expects
+/// ([`expected_category`]) unless the object is listed elsewhere (each such entry is reported,
+/// E0406, and few files have any), so that no look-up hashes.
 #[derive(Default)]
 pub(crate) struct Lists {
     /// Which of the three lists exist (Mandatory, Optional, Manufacturer).
     pub present: [bool; 3],
-    /// Each listed index with the list that names it first and the span of that entry.
-    pub listed: FastMap<u16, (Category, Span)>,
+    /// Each listed index, once, with the list that names it first and the span of that entry,
+    /// in the order the lists are read.
+    pub listed: Vec<(u16, Category, Span)>,
+    /// The listed indices.
+    set: IndexSet,
+    /// The listed indices whose list is not the one [`expected_category`] gives, with theirs,
+    /// sorted by index (a file may misplace thousands: found by a binary search).
+    misplaced: Vec<(u16, Category)>,
+}
+
+impl Lists {
+    /// Whether a list names `index`.
+    #[inline]
+    pub fn contains(&self, index: u16) -> bool {
+        self.set.contains(index)
+    }
+
+    /// The list that names `index` first, if any.
+    pub fn category(&self, index: u16) -> Option<Category> {
+        if !self.contains(index) {
+            return None;
+        }
+        if self.misplaced.is_empty() {
+            return Some(expected_category(index));
+        }
+        Some(match self.misplaced.binary_search_by_key(&index, |&(i, _)| i) {
+            Ok(at) => self.misplaced[at].1,
+            Err(_) => expected_category(index),
+        })
+    }
+
+    /// Gives the set of indices back to `pool` for the next file, emptied.
+    pub fn give_back(mut self, pool: &mut super::pool::Pool) {
+        self.set.clear(self.listed.iter().map(|&(i, _, _)| i));
+        pool.listed = self.set;
+    }
+}
+
+/// A set of object indices, a bit each, in blocks of 256 indices (the indices that share their
+/// high byte) made as the set needs them: a file lists a few hundred objects in a few dozen such
+/// blocks, so that the set is a kilobyte or two, on pages in use anyway (a bit for each of the
+/// 65,536 indices, 8 KiB kept from file to file, cost the run two fresh pages and displaced
+/// other blocks: four to seven page faults more than the hash map it replaces). Kept from one file to
+/// the next ([`Lists::give_back`]) and emptied by the indices put in it, not by zeroing it.
+#[derive(Default)]
+pub(crate) struct IndexSet {
+    /// For each high byte, the number of its block plus one (0: none); empty while no index was
+    /// ever put in.
+    top: Vec<u16>,
+    /// The blocks of 256 bits.
+    blocks: Vec<[u64; 4]>,
+}
+
+impl IndexSet {
+    /// Whether `index` is in the set.
+    #[inline]
+    pub fn contains(&self, index: u16) -> bool {
+        let (hi, lo) = ((index >> 8) as usize, (index & 0xFF) as usize);
+        match self.top.get(hi) {
+            Some(&b) if b != 0 => self.blocks[b as usize - 1][lo / 64] >> (lo % 64) & 1 != 0,
+            _ => false,
+        }
+    }
+
+    /// Puts `index` in the set; whether it was in it before.
+    #[inline]
+    pub fn insert(&mut self, index: u16) -> bool {
+        if self.top.is_empty() {
+            self.top = vec![0; 256];
+        }
+        let (hi, lo) = ((index >> 8) as usize, (index & 0xFF) as usize);
+        if self.top[hi] == 0 {
+            self.blocks.push([0; 4]);
+            self.top[hi] = self.blocks.len() as u16;
+        }
+        let word = &mut self.blocks[self.top[hi] as usize - 1][lo / 64];
+        let bit = 1u64 << (lo % 64);
+        let before = *word & bit != 0;
+        *word |= bit;
+        before
+    }
+
+    /// Empties the set, given (at least) every index in it.
+    pub fn clear(&mut self, indices: impl Iterator<Item = u16>) {
+        if !self.top.is_empty() {
+            for index in indices {
+                self.top[(index >> 8) as usize] = 0;
+            }
+        }
+        debug_assert!(self.top.iter().all(|&b| b == 0));
+        self.blocks.clear();
+    }
 }
 
 pub(crate) fn category_slot(c: Category) -> usize {
@@ -689,6 +784,9 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
         .map(|s| s.entries.len())
         .sum();
     lists.listed.reserve(listed);
+    lists.set = std::mem::take(&mut cx.pool.listed);
+    // (Keyed by `u32`, as the index of sections is: one instance of the map's code for both.)
+    let mut at: Option<FastMap<u32, u32>> = None;
     for cat in [Category::Mandatory, Category::Optional, Category::Manufacturer] {
         let Some(sec) = secs.get(Kind::List(cat)) else { continue };
         lists.present[category_slot(cat)] = true;
@@ -755,11 +853,17 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                 None => numbers = Some((1..count).chain([n]).collect()),
                 Some(numbers) => numbers.push(n),
             }
-            // One look-up for the repeat check and the insertion.
-            let vacant = match lists.listed.entry(index) {
-                std::collections::hash_map::Entry::Vacant(e) => e,
-                std::collections::hash_map::Entry::Occupied(e) => {
-                    let (prev_cat, prev_span) = *e.get();
+            if lists.set.insert(index) {
+                // A repeat (rare): its first entry is found in a map of where each index is in
+                // `listed`, made at the file's first repeat (a file of many repeats is not
+                // searched for each).
+                let listed = &lists.listed;
+                let at = at.get_or_insert_with(|| {
+                    let mut at = FastMap::with_capacity_and_hasher(listed.len(), Default::default());
+                    at.extend(listed.iter().enumerate().map(|(n, &(i, _, _))| (i as u32, n as u32)));
+                    at
+                });
+                if let Some(&(_, prev_cat, prev_span)) = at.get(&(index as u32)).map(|&n| &listed[n as usize]) {
                     let first = cx.src.line_col(prev_span.start);
                     let d = cx.emit(
                         codes::E0405,
@@ -771,9 +875,9 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                         ),
                     );
                     d.hint = Some("list every object once".into());
-                    continue;
                 }
-            };
+                continue;
+            }
             let want = expected_category(index);
             if want != cat {
                 let d = cx.emit(
@@ -782,8 +886,12 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                     format!("object 0x{index:04X} is listed in [{name}] but belongs in [{}]", list_name(want)),
                 );
                 d.hint = Some(format!("move it to [{}]", list_name(want)).into());
+                lists.misplaced.push((index, cat));
             }
-            vacant.insert((cat, kv.value_span(&cx.src.text)));
+            if let Some(at) = &mut at {
+                at.insert(index as u32, lists.listed.len() as u32);
+            }
+            lists.listed.push((index, cat, kv.value_span(&cx.src.text)));
         }
         let numbers = match numbers {
             Some(mut numbers) => {
@@ -833,6 +941,10 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
                 d.hint = Some(format!("add `SupportedObjects={}`", listed_count).into());
             }
         }
+    }
+    // (Each index once: no two entries with one index.)
+    if lists.misplaced.len() > 1 {
+        lists.misplaced.sort_unstable_by_key(|&(i, _)| i);
     }
     lists
 }
@@ -931,6 +1043,111 @@ mod tests {
     }
 
     proptest::proptest! {
+        /// The set of indices holds what a `BTreeSet` holds, file after file (emptied by the
+        /// indices put in it and reused).
+        #[test]
+        fn index_sets_hold_what_a_btree_set_holds(
+            files in proptest::collection::vec(proptest::collection::vec(proptest::prop_oneof![
+                proptest::num::u16::ANY,
+                0x1000u16..0x1040,
+                0x6000u16..0x6100,
+            ], 0..200), 1..4),
+        ) {
+            let mut set = IndexSet::default();
+            for indices in &files {
+                let mut reference = std::collections::BTreeSet::new();
+                for &i in indices {
+                    proptest::prop_assert_eq!(set.insert(i), !reference.insert(i));
+                }
+                for i in 0..=u16::MAX {
+                    proptest::prop_assert_eq!(set.contains(i), reference.contains(&i), "{:#06x}", i);
+                }
+                set.clear(reference.iter().copied());
+                proptest::prop_assert!((0..=u16::MAX).all(|i| !set.contains(i)));
+            }
+        }
+
+        /// What the lists say of each index (listed or not, in which list first; once each, in
+        /// the order the lists are read) is what a map of the entries in that order says, in a
+        /// reader's files one after the other, whatever the lists, their order in the file,
+        /// repeated and misplaced entries.
+        #[test]
+        fn lists_say_what_their_entries_say(
+            files in proptest::collection::vec(proptest::collection::vec(
+                (0..3usize, proptest::prop_oneof![0x1000u16..0x1020, 0x2000u16..0x2008, 0x6000u16..0x6008, proptest::num::u16::ANY]),
+                0..40), 1..4),
+        ) {
+            let cats = [Category::Mandatory, Category::Optional, Category::Manufacturer];
+            let mut pool = super::super::pool::Pool::default();
+            for entries in &files {
+                // Each list in the order of its first entry, its entries numbered in order.
+                let mut text = String::new();
+                let mut order: Vec<usize> = Vec::new();
+                for &(c, _) in entries {
+                    if !order.contains(&c) {
+                        order.push(c);
+                    }
+                }
+                let mut reference: Vec<(u16, Category)> = Vec::new();
+                for &c in [0, 1, 2].iter().filter(|c| order.contains(c)) {
+                    for &(_, i) in entries.iter().filter(|&&(e, _)| e == c) {
+                        if !reference.iter().any(|&(r, _)| r == i) {
+                            reference.push((i, cats[c]));
+                        }
+                    }
+                }
+                // The line of each list's entries (lists in file order).
+                let mut lines: Vec<Vec<u32>> = vec![Vec::new(); 3];
+                let mut line = 1;
+                for &c in &order {
+                    let mine: Vec<u16> = entries.iter().filter(|&&(e, _)| e == c).map(|&(_, i)| i).collect();
+                    text.push_str(&format!("[{}]\nSupportedObjects={}\n", list_name(cats[c]), mine.len()));
+                    line += 2;
+                    for (n, i) in mine.iter().enumerate() {
+                        text.push_str(&format!("{}=0x{i:04X}\n", n + 1));
+                        lines[c].push(line);
+                        line += 1;
+                    }
+                }
+                // Each repeat's report names the list and line of the index's first entry (lists
+                // read in category order).
+                let mut first: Vec<(u16, usize, u32)> = Vec::new();
+                let mut want_repeats: Vec<String> = Vec::new();
+                for c in [0, 1, 2] {
+                    for (&(_, i), &l) in entries.iter().filter(|&&(e, _)| e == c).zip(&lines[c]) {
+                        match first.iter().find(|&&(f, _, _)| f == i) {
+                            Some(&(_, fc, fl)) => want_repeats.push(format!(
+                                "object 0x{i:04X} is listed again (first in [{}] at line {fl})",
+                                list_name(cats[fc])
+                            )),
+                            None => first.push((i, c, l)),
+                        }
+                    }
+                }
+                let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", text.as_str()));
+                let mut cx = Ctx::new(&doc.source, crate::Strictness::Lenient);
+                cx.pool = std::mem::take(&mut pool);
+                let mut collected = super::super::sections::collect(&doc, &mut cx, &mut Default::default());
+                let secs = collected.sections();
+                let lists = lower_object_lists(&secs, &mut cx);
+                proptest::prop_assert_eq!(
+                    lists.listed.iter().map(|&(i, c, _)| (i, c)).collect::<Vec<_>>(),
+                    reference.clone()
+                );
+                for i in entries.iter().map(|&(_, i)| i).chain([0, 0x1000, 0x1018, 0x2000, 0xFFFF]) {
+                    let want = reference.iter().find(|&&(r, _)| r == i).map(|&(_, c)| c);
+                    proptest::prop_assert_eq!(lists.category(i), want, "{:#06x}", i);
+                    proptest::prop_assert_eq!(lists.contains(i), want.is_some());
+                }
+                let repeats: Vec<String> =
+                    cx.diags.iter().filter(|d| d.code == codes::E0405).map(|d| d.message.clone()).collect();
+                proptest::prop_assert_eq!(repeats.len(), entries.len() - reference.len());
+                proptest::prop_assert_eq!(repeats, want_repeats);
+                lists.give_back(&mut cx.pool);
+                pool = std::mem::take(&mut cx.pool);
+            }
+        }
+
         #[test]
         fn list_numbers_agree_with_parse(key in "[+-]?[0-9a ]{0,12}") {
             proptest::prop_assert_eq!(list_number(&key), key.parse::<u32>().ok());

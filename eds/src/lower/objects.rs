@@ -1,7 +1,7 @@
 //! Pass 3: object sections → [`Object`]s with typed [`Entry`]s.
 
 use super::info::{Lists, expected_category};
-use super::sections::{KeySet, Keys, Kind, Kv, Section, Sections, match_keys, reuse, with_room};
+use super::sections::{KeySet, Keys, Kind, Kv, Section, Sections, fill_keys, match_keys, reuse, with_room};
 use super::{Crumbs, Ctx, otype};
 use crate::codes;
 use crate::model::{
@@ -886,7 +886,7 @@ pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Mode
                 }
             }
         }
-        obj.category = lists.listed.get(&index).map(|&(c, _)| c).unwrap_or_else(|| expected_category(index));
+        obj.category = lists.category(index).unwrap_or_else(|| expected_category(index));
         built.push(obj);
     }
     if model.objects.is_empty() {
@@ -935,7 +935,8 @@ fn build_object(
     values: Option<&Section<'_>>,
 ) -> Object {
     let ctx = Crumbs::object_named_by(index, sec.entries, sec.name);
-    let keys = match_keys(cx, sec, &OBJ_KEYS, ctx, true);
+    let mut keys = Keys::new();
+    fill_keys(cx, sec, &OBJ_KEYS, ctx, true, &mut keys);
     let mut name = match keys.get(K_NAME) {
         Some(kv) => Name::from(kv.value()),
         None => {
@@ -1135,9 +1136,11 @@ fn build_object(
         }
     }
     obj.extra.extend(keys.unknown.iter().map(|kv| owned(kv)));
+    let mut skeys = Keys::new();
     for &(sub, ssec) in subs {
         let sctx = ctx.sub_named_by(sub, ssec.entries);
-        let skeys = match_keys(cx, ssec, &OBJ_KEYS, sctx, true);
+        skeys.clear();
+        fill_keys(cx, ssec, &OBJ_KEYS, sctx, true, &mut skeys);
         if let Some(kv) = skeys.get(K_OTYPE)
             && uint_key(cx, kv, 0xFF, sctx) != Ok(0x7)
         {

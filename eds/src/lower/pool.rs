@@ -27,6 +27,8 @@ pub(crate) struct Pool {
     pub lists: ObjectLists,
     /// The size of file the buffers are made for (the file's, or the reader's room if larger).
     pub room: usize,
+    /// The set of listed indices (`info::Lists`), emptied.
+    pub listed: super::info::IndexSet,
 }
 
 /// The lists `objects::lower_objects` sorts a file's sections into, kept for the next file

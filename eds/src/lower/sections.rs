@@ -597,7 +597,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     } else if src.encoding == Encoding::Windows1252 {
         cx.emit(codes::E0001, None, "file is not valid UTF-8; it was decoded as Windows-1252").hint =
             Some("save the file as UTF-8 (or plain ASCII, as CiA 306 asks)".into());
-    } else if let Some(pos) = first_non_ascii(src.text.as_bytes()) {
+    } else if let Some(pos) = src.first_non_ascii() {
         let ch_len = src.text[pos..].chars().next().map(char::len_utf8).unwrap_or(1);
         cx.emit(codes::E0009, Some(Span::new(pos as u32, (pos + ch_len) as u32)), "the file contains non-ASCII text")
             .hint = Some("CiA 306 files are ASCII; tools that expect it may misread this text".into());
@@ -781,19 +781,6 @@ fn runs_of_heads(heads: &[Head<'_>], room: usize) -> Vec<(u32, u32, u32)> {
     let mut runs = Vec::with_capacity(room.max(heads.len() + 1));
     runs.extend(heads.iter().enumerate().map(|(i, h)| (i as u32, h.entries.start as u32, h.name_span.start)));
     runs
-}
-
-/// The position of the first byte of `b` that is not ASCII: sixty-four bytes at a time
-/// ([`slice::is_ascii`]), then byte by byte in the block that holds it.
-fn first_non_ascii(b: &[u8]) -> Option<usize> {
-    let mut at = 0;
-    for block in b.chunks(64) {
-        if !block.is_ascii() {
-            return block.iter().position(|&c| c >= 0x80).map(|i| at + i);
-        }
-        at += block.len();
-    }
-    None
 }
 
 // The reports of pass 1 that few lines need, kept out of its loop over the lines (whose
@@ -1030,6 +1017,13 @@ impl<const N: usize> KeySet<N> {
         None
     }
 
+    /// Whether `key` is spelled exactly as key number `i` (false when there is no such key, or
+    /// it is longer than 16 bytes: compared by its two words, as [`KeySet::find`] does).
+    #[inline(always)]
+    pub fn is_exactly(&self, i: usize, key: &str) -> bool {
+        i < N && key.len() == self.names[i].len() && key.len() <= 16 && key_words(key.as_bytes()) == self.words[i]
+    }
+
     /// The number of the key that equals `key` ignoring ASCII case, and whether `key` is
     /// spelled exactly like it.
     #[inline]
@@ -1081,6 +1075,19 @@ pub(crate) struct Keys<'a, const N: usize> {
 }
 
 impl<'a, const N: usize> Keys<'a, N> {
+    /// No keys.
+    #[inline]
+    pub fn new() -> Self {
+        Keys { found: [None; N], unknown: Vec::new() }
+    }
+
+    /// Forgets every key (the vector keeps its room).
+    #[inline]
+    pub fn clear(&mut self) {
+        self.found = [None; N];
+        self.unknown.clear();
+    }
+
     /// The entry for known key number `i`.
     #[inline]
     pub fn get(&self, i: usize) -> Option<&'a Kv<'a>> {
@@ -1108,8 +1115,25 @@ pub(crate) fn match_keys<'a, const N: usize>(
     context: Crumbs<'_>,
     report_unknown: bool,
 ) -> Keys<'a, N> {
-    let mut found: [Option<&'a Kv<'a>>; N] = [None; N];
-    let mut unknown: Vec<&'a Kv<'a>> = Vec::new();
+    let mut keys = Keys::new();
+    fill_keys(cx, sec, known, context, report_unknown, &mut keys);
+    keys
+}
+
+/// [`match_keys`] into `keys`, which must be empty ([`Keys::new`], [`Keys::clear`]): for the
+/// sections of objects and sub-objects, the commonest, a `Keys` returned was copied out of the
+/// frame that filled it (about twenty instructions a section, and a `memcpy` call once the
+/// compiler no longer kept it apart), and a `Keys` reused from one sub-object to the next
+/// keeps its vector of unknown keys.
+pub(crate) fn fill_keys<'a, const N: usize>(
+    cx: &mut Ctx<'_>,
+    sec: &Section<'a>,
+    known: &KeySet<N>,
+    context: Crumbs<'_>,
+    report_unknown: bool,
+    keys: &mut Keys<'a, N>,
+) {
+    let Keys { found, unknown } = keys;
     // The last unknown entry of each key, once there are enough of them (object lists have
     // hundreds) that searching the earlier ones for a repeat would cost more than hashing.
     let mut last_unknown: Option<FastMap<Caseless<'a>, usize>> = None;
@@ -1118,10 +1142,15 @@ pub(crate) fn match_keys<'a, const N: usize>(
     // them and is kept without a search.
     let mut numbered = true;
     let names = &known.names;
-    for kv in sec.entries {
-        let found_key = known.find(kv.key());
+    // The key expected next: the one after the last found, in the key set's order, which is
+    // the order CiA 306 and nearly every file write them in (ParameterName, ObjectType,
+    // DataType, AccessType, DefaultValue, PDOMapping): compared first, as spelled.
+    let mut next = 0;
+    for (at, kv) in sec.entries.iter().enumerate() {
+        let found_key = if known.is_exactly(next, kv.key()) { Some((next, true)) } else { known.find(kv.key()) };
         let mut hit = found_key.map(|(i, _)| i);
         if let Some((i, exact)) = found_key {
+            next = i + 1;
             if !exact && !cx.skips(codes::E0104) {
                 let d = cx.emit(
                     codes::E0104,
@@ -1152,6 +1181,10 @@ pub(crate) fn match_keys<'a, const N: usize>(
             }
             None if numbered && is_number(kv.key(), unknown.len() + 1) => {
                 debug_assert!(!unknown.iter().any(|u| u.key().eq_ignore_ascii_case(kv.key())), "{}", kv.key());
+                if unknown.capacity() == 0 {
+                    // Room for every entry left, so that the vector is not grown step by step.
+                    unknown.reserve_exact(sec.entries.len() - at);
+                }
                 unknown.push(kv);
                 if report_unknown {
                     report_unknown_key(cx, kv, sec, context);
@@ -1174,7 +1207,7 @@ pub(crate) fn match_keys<'a, const N: usize>(
                             None
                         }
                     },
-                    None => unknown.iter().position(|u| u.key().eq_ignore_ascii_case(kv.key())),
+                    None => unknown.iter().position(|u| same_key(u.key(), kv.key())),
                 };
                 // A repeated key keeps its first place with the later value, as a known key
                 // does: the model (and a file written from it) has each key once.
@@ -1183,7 +1216,12 @@ pub(crate) fn match_keys<'a, const N: usize>(
                         report_duplicate(cx, unknown[i], kv, context);
                         unknown[i] = kv;
                     }
-                    None => unknown.push(kv),
+                    None => {
+                        if unknown.capacity() == 0 {
+                            unknown.reserve_exact(sec.entries.len() - at);
+                        }
+                        unknown.push(kv)
+                    }
                 }
                 if report_unknown {
                     report_unknown_key(cx, kv, sec, context);
@@ -1191,7 +1229,14 @@ pub(crate) fn match_keys<'a, const N: usize>(
             }
         }
     }
-    Keys { found, unknown }
+}
+
+/// Whether two keys are equal ignoring ASCII case, compared from their ends: the unknown keys
+/// of a section that share a length (`Dummy0001`, `Dummy0002`, ...; `BaudRate_125`,
+/// `BaudRate_250`) mostly differ in their last bytes.
+#[inline]
+fn same_key(a: &str, b: &str) -> bool {
+    a.len() == b.len() && a.bytes().rev().zip(b.bytes().rev()).all(|(x, y)| x.eq_ignore_ascii_case(&y))
 }
 
 /// Reports a key that is not one of its section's (E0102).
@@ -1388,7 +1433,75 @@ mod tests {
         out
     }
 
+    /// What [`fill_keys`] finds, by the rules alone: for each known key the index of the entry
+    /// that sets it last, and the unknown entries, each key once (at its first entry's place,
+    /// with the index of its last).
+    fn reference_keys<const N: usize>(known: &KeySet<N>, entries: &[Kv<'_>]) -> (Vec<Option<usize>>, Vec<usize>) {
+        let mut found = vec![None; N];
+        let mut unknown: Vec<usize> = Vec::new();
+        for (j, kv) in entries.iter().enumerate() {
+            let key = kv.key();
+            let hit = (known.names.iter().position(|n| n.eq_ignore_ascii_case(key)))
+                .or_else(|| known.names.iter().position(|n| loose_eq(n, key)));
+            match hit {
+                Some(i) => found[i] = Some(j),
+                None => match unknown.iter().position(|&u| entries[u].key().eq_ignore_ascii_case(key)) {
+                    Some(p) => unknown[p] = j,
+                    None => unknown.push(j),
+                },
+            }
+        }
+        (found, unknown)
+    }
+
     proptest::proptest! {
+        /// `fill_keys` (into a `Keys` reused from the section before, as objects' sub-objects
+        /// are matched; the key expected next compared first) and `match_keys` find the keys
+        /// the rules find, with the same reports,
+        /// for keys spelled as CiA 306 does, in other cases, loosely, numbered and unknown
+        /// (repeated too; the unknown ones that share a length and differ in their last bytes,
+        /// as `Dummy0001` and `BaudRate_125` do).
+        #[test]
+        fn matched_keys_are_what_the_rules_find(
+            sections in proptest::collection::vec(proptest::collection::vec(
+                "ParameterName|parametername|Parameter_Name|DynamicChannelsSupported|DynamicCXannelsSupported|DataType|DATATYPE|DataTypf|VendorName|Vendor Name|LSS_Supported|LSSSupported|Dummy000[0-9]|DUMMY000[0-9]|BaudRate_[0-9]{1,4}|[1-9][0-9]?|[a-zA-Z_]{1,3}",
+                0..24), 1..4),
+        ) {
+            // (In an order that the keys drawn often follow, so that the key expected next is
+            // often the one found, and often not; one longer than 16 bytes, and a key that has
+            // its first and last eight bytes but is not it.)
+            const KNOWN: KeySet<6> =
+                KeySet::new(["ParameterName", "DynamicChannelsSupported", "DataType", "VendorName", "LSS_Supported", "BaudRate"]);
+            let mut text = String::new();
+            for (n, keys) in sections.iter().enumerate() {
+                text.push_str(&format!("[X{n}]\n"));
+                for (j, k) in keys.iter().enumerate() {
+                    text.push_str(&format!("{k}=v{j}\n"));
+                }
+            }
+            let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", text.as_str()));
+            let mut cx = Ctx::new(&doc.source, crate::Strictness::Lenient);
+            let mut collected = collect(&doc, &mut cx, &mut Scratch::default());
+            let secs = collected.sections();
+            let mut reused = Keys::new();
+            for sec in &secs.list {
+                let before = cx.diags.len();
+                let fresh = match_keys(&mut cx, sec, &KNOWN, Crumbs::default(), true);
+                let fresh_diags: Vec<_> = cx.diags[before..].iter().map(|d| (d.code, d.span, d.message.clone())).collect();
+                let before = cx.diags.len();
+                reused.clear();
+                fill_keys(&mut cx, sec, &KNOWN, Crumbs::default(), true, &mut reused);
+                let reused_diags: Vec<_> = cx.diags[before..].iter().map(|d| (d.code, d.span, d.message.clone())).collect();
+                proptest::prop_assert_eq!(&fresh_diags, &reused_diags);
+                let index = |kv: &Kv<'_>| sec.entries.iter().position(|e| std::ptr::eq(e, kv)).unwrap();
+                let (found, unknown) = reference_keys(&KNOWN, sec.entries);
+                for keys in [&fresh, &reused] {
+                    proptest::prop_assert_eq!(keys.found.iter().map(|f| f.map(index)).collect::<Vec<_>>(), found.clone());
+                    proptest::prop_assert_eq!(keys.unknown.iter().map(|&kv| index(kv)).collect::<Vec<_>>(), unknown.clone());
+                }
+            }
+        }
+
         #[test]
         fn entries_hold_to_the_text(
             lines in proptest::collection::vec("[ \t\u{A0}]{0,2}(\\[[0-9A-Fa-fsub ]{0,10}\\]|[A-Za-z\u{e4}]{0,14}[ \t]?=[ \t]?[0-9a-zA-Z$+ ;#=\u{e4}]{0,12}|;.{0,5}|\\PC{0,8})[ \t\u{A0}]{0,2}", 0..40),
@@ -1542,23 +1655,6 @@ mod tests {
             }
             assert_eq!(index.get(Kind::Unknown), None);
             assert_eq!(index.get(Kind::Object(0x2000)), None);
-        }
-    }
-
-    #[test]
-    fn first_non_ascii_is_what_a_byte_scan_finds() {
-        for len in [0usize, 1, 63, 64, 65, 127, 128, 200] {
-            for at in (0..len).step_by(7).chain([len.saturating_sub(1)]) {
-                let mut b = vec![b'a'; len];
-                assert_eq!(first_non_ascii(&b), None);
-                if len > 0 {
-                    b[at] = 0x80;
-                    if at + 1 < len {
-                        b[len - 1] = 0xFF;
-                    }
-                    assert_eq!(first_non_ascii(&b), b.iter().position(|&c| c >= 0x80), "{len} {at}");
-                }
-            }
         }
     }
 

@@ -26,40 +26,46 @@ fn object_lists(secs: &Sections<'_>, lists: &Lists, model: &Model, cx: &mut Ctx<
             Some("list every object in the list it belongs to; this reader loaded the object sections it found".into());
         return;
     }
-    // The listed objects that have no section (few), in file order.
-    let mut missing: Vec<(u16, crate::model::Category, Span)> = lists
-        .listed
-        .iter()
-        .filter(|&(&index, _)| !model.objects.contains_key(&Index(index)) && secs.get(Kind::Object(index)).is_none())
-        .map(|(&index, &(cat, span))| (index, cat, span))
-        .collect();
-    missing.sort_by_key(|&(_, _, span)| span.start);
-    for (index, cat, span) in missing {
-        let hex = super::hex4(index);
-        let d = cx.emit(
-            codes::E0401,
-            Some(span),
-            super::cat(["[", list_name(cat), "] lists 0x", &hex, ", but there is no section [", &hex, "]"]),
-        );
-        d.hint = Some(super::cat(["add the section [", &hex, "] or remove the list entry"]).into());
-    }
+    // The objects no list names; and how many are named, so that the listed objects are
+    // searched for those without a section only when some listed index has no object.
+    let mut listed_objects = 0;
     for obj in model.objects.values() {
-        if !lists.listed.contains_key(&obj.index.0) {
-            let cat = obj.category;
+        if lists.contains(obj.index.0) {
+            listed_objects += 1;
+            continue;
+        }
+        let cat = obj.category;
+        let d = cx.emit(
+            codes::E0402,
+            Some(obj.at.span),
+            super::cat(["object 0x", &super::hex4(obj.index.0), " is not named in any object list"]),
+        );
+        d.hint = Some(
+            if lists.present[category_slot(cat)] {
+                super::cat(["add it to [", list_name(cat), "] and raise SupportedObjects"])
+            } else {
+                super::cat(["add a [", list_name(cat), "] section that lists it"])
+            }
+            .into(),
+        );
+        d.context = vec![object_context(obj.index.0, &obj.name)];
+    }
+    // The listed objects that have no section (few), in file order.
+    if listed_objects < lists.listed.len() {
+        let mut missing: Vec<(u16, crate::model::Category, Span)> = (lists.listed.iter().copied())
+            .filter(|&(index, _, _)| {
+                !model.objects.contains_key(&Index(index)) && secs.get(Kind::Object(index)).is_none()
+            })
+            .collect();
+        missing.sort_by_key(|&(_, _, span)| span.start);
+        for (index, cat, span) in missing {
+            let hex = super::hex4(index);
             let d = cx.emit(
-                codes::E0402,
-                Some(obj.at.span),
-                super::cat(["object 0x", &super::hex4(obj.index.0), " is not named in any object list"]),
+                codes::E0401,
+                Some(span),
+                super::cat(["[", list_name(cat), "] lists 0x", &hex, ", but there is no section [", &hex, "]"]),
             );
-            d.hint = Some(
-                if lists.present[category_slot(cat)] {
-                    super::cat(["add it to [", list_name(cat), "] and raise SupportedObjects"])
-                } else {
-                    super::cat(["add a [", list_name(cat), "] section that lists it"])
-                }
-                .into(),
-            );
-            d.context = vec![object_context(obj.index.0, &obj.name)];
+            d.hint = Some(super::cat(["add the section [", &hex, "] or remove the list entry"]).into());
         }
     }
 }
