@@ -314,12 +314,25 @@ fn open_without_waiting(path: &std::path::Path) -> std::io::Result<std::fs::File
 /// each file costs four system calls: `openat`, `statx`, `read` and `close` (the probe, before,
 /// is the caller's). A file whose size is given as 0, as files of `/proc` are, is read to its
 /// end as it comes.
+/// The largest file [`read_file`] and [`Reader`] read (4 GiB less a byte): positions in a text
+/// are `u32` ([`source::Span`]); a larger file is refused before it is read.
+pub const MAX_FILE: u64 = u32::MAX as u64;
+
 fn read_bytes_into(probed: &Probed<'_>, bytes: Vec<u8>, room: usize) -> std::io::Result<Vec<u8>> {
     let mut file = open_without_waiting(probed.path)?;
     // (Checked again on the open file, in case the path changed since it was probed.)
     let m = file.metadata()?;
     if !m.is_file() {
         return Err(not_regular(&m));
+    }
+    if m.len() > MAX_FILE {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!(
+                "the file is {} bytes; positions in a description are 32-bit, so at most {MAX_FILE} are read",
+                m.len()
+            ),
+        ));
     }
     let len = usize::try_from(m.len()).unwrap_or(0);
     let need = len.max(room).saturating_add(1);

@@ -359,3 +359,28 @@ fn implicit_elements_are_bounded_by_the_file_size() {
     let p = eds::parse("a.eds", text.as_bytes(), &Options::lenient());
     assert!(p.diagnostics.iter().all(|d| d.code != eds::codes::E0222));
 }
+
+/// A file larger than positions can say (4 GiB) is refused before it is read, with its size
+/// (the file is sparse: no disk is written, and nothing is read).
+#[test]
+fn a_file_of_4_gib_or_more_is_refused_unread() {
+    let dir = std::env::temp_dir().join(format!("eds-huge-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let path = dir.join("huge.eds");
+    let file = std::fs::File::create(&path).expect("create");
+    if file.set_len(eds::MAX_FILE + 1).is_err() {
+        // (A file system without sparse files of that size: nothing to check here.)
+        let _ = std::fs::remove_dir_all(&dir);
+        return;
+    }
+    drop(file);
+    let started = std::time::Instant::now();
+    let refused = eds::read_file(&path, &eds::Options::lenient()).expect_err("refused");
+    let reader = eds::Reader::new().read_file(&path, &eds::Options::lenient()).expect_err("refused");
+    let _ = std::fs::remove_dir_all(&dir);
+    assert_eq!(refused.kind(), std::io::ErrorKind::InvalidData);
+    assert!(refused.to_string().contains(&format!("{} bytes", eds::MAX_FILE + 1)), "{refused}");
+    assert_eq!(reader.to_string(), refused.to_string());
+    // (Reading 4 GiB would take seconds and as much memory.)
+    assert!(started.elapsed() < std::time::Duration::from_secs(2));
+}

@@ -51,11 +51,17 @@ impl<'a> Kv<'a> {
     }
 
     /// The entry of `key` and `value`, slices of one text, the value not before the key (as
-    /// on every line, where the key comes before the `=` and the value after it).
+    /// on every line, where the key comes before the `=` and the value after it). A key or a
+    /// value that does not fit the entry's `u32`s (in a text of 4 GiB or more, which
+    /// `eds::read_file` refuses but `eds::parse` is given) makes an entry of an empty key and
+    /// value at the key's start: wrong, as the positions of such a text are anyway (spans are
+    /// `u32`), but never a slice of anything but the text.
     #[inline(always)]
     pub fn of(key: &'a str, value: &'a str) -> Self {
         let value_off = (value.as_ptr() as usize).wrapping_sub(key.as_ptr() as usize);
-        debug_assert!(value_off <= u32::MAX as usize && value.len() <= u32::MAX as usize);
+        if (key.len() | value_off | value.len()) > u32::MAX as usize {
+            return Kv::empty_at(key);
+        }
         Kv {
             key_at: key.as_ptr(),
             key_len: key.len() as u32,
@@ -63,6 +69,13 @@ impl<'a> Kv<'a> {
             value_len: value.len() as u32,
             text: std::marker::PhantomData,
         }
+    }
+
+    /// [`Kv::of`] of what does not fit an entry: an empty key and value at the key's start.
+    #[cold]
+    #[inline(never)]
+    fn empty_at(key: &'a str) -> Self {
+        Kv { key_at: key.as_ptr(), key_len: 0, value_off: 0, value_len: 0, text: std::marker::PhantomData }
     }
 
     /// The key.
@@ -1314,6 +1327,20 @@ pub(crate) fn report_duplicate(cx: &mut Ctx<'_>, prev: &Kv<'_>, kv: &Kv<'_>, con
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An entry keeps what fits its `u32`s, and nothing else (an entry of a text of 4 GiB or
+    /// more is an empty key and value, not a slice of memory outside the text).
+    #[test]
+    fn an_entry_keeps_only_what_fits_it() {
+        // (A text of 4 GiB is too much for a test; a value before its key, which no line has,
+        // gives an offset that wraps past what fits, as one 4 GiB on would.)
+        let text = "ab=cd";
+        let kv = Kv::of(&text[3..], &text[..2]);
+        assert_eq!((kv.key(), kv.value()), ("", ""));
+        assert_eq!(kv.key_span(text), Span::new(3, 3));
+        let kv = Kv::of(&text[..2], &text[3..]);
+        assert_eq!((kv.key(), kv.value()), ("ab", "cd"));
+    }
 
     /// An entry gives back the key and value it was made of, and their spans, whatever their
     /// lengths and places in the text (multi-byte text, empty parts, parts at either end of the
