@@ -114,7 +114,8 @@ pub struct SourceFile {
     line_starts: std::sync::OnceLock<Vec<u32>>,
     /// Whether `text` was found to be all ASCII when it was decoded ([`SourceFile::decode_owned`]
     /// looks at every byte for that anyway), so that lowering need not look again for the
-    /// first non-ASCII byte (E0009); `false` only means "not known".
+    /// first non-ASCII byte (E0009; deriving it again cost 0.35 M instructions on the corpus);
+    /// `false` only means "not known". Like `line_starts`, it describes the text as decoded.
     ascii: bool,
 }
 
