@@ -60,15 +60,13 @@ pub fn par_each<'a, T: Sync + 'a, R: Send>(
     use std::sync::atomic::{AtomicUsize, Ordering};
     use std::sync::{Condvar, Mutex, OnceLock};
     let jobs = jobs.max(1);
-    // The items and their order, once `find` has given them (the threads started before wait
-    // for them).
-    let found: OnceLock<&'a [T]> = OnceLock::new();
-    let taken: OnceLock<Vec<usize>> = OnceLock::new();
+    // The items and the order to take them in, once `find` has given them (the threads
+    // started before wait for them).
+    let taken: OnceLock<(&'a [T], Vec<usize>)> = OnceLock::new();
     let next = AtomicUsize::new(0);
-    // The next item to work on (`None` when all are taken). (`taken` is set after `found`.)
+    // The next item to work on (`None` when all are taken).
     let claim = || {
-        let order = taken.wait();
-        let items = found.get().copied().unwrap_or_default();
+        let (items, order) = taken.wait();
         order.get(next.fetch_add(1, Ordering::Relaxed)).and_then(|&i| Some((i, items.get(i)?)))
     };
     // The results not yet emitted, and whether the calling thread waits for one (a worker
@@ -126,9 +124,8 @@ pub fn par_each<'a, T: Sync + 'a, R: Send>(
         }
     }
     let (items, order) = find();
-    let _ = found.set(items);
     slots.lock().unwrap_or_else(|e| e.into_inner()).0 = items.iter().map(|_| None).collect();
-    let _ = taken.set(permutation_or_identity(order, items.len()));
+    let _ = taken.set((items, permutation_or_identity(order, items.len())));
     // The first result not yet handed to `emit`.
     let mut done = 0;
     let take_ready = |wait: bool, done: &mut usize, emit: &mut dyn FnMut(&T, R)| {
@@ -170,15 +167,15 @@ pub fn par_each<'a, T: Sync + 'a, R: Send>(
 /// The worker threads of [`par_each`], joined when dropped: if the calling thread unwinds
 /// before it joins them, they are told there is nothing (more) to take and are waited for, so
 /// that none outlives what it borrows.
-struct Workers<'a> {
+struct Workers<'a, 'b, T> {
     threads: Vec<std::thread::JoinHandle<()>>,
-    taken: &'a std::sync::OnceLock<Vec<usize>>,
+    taken: &'a std::sync::OnceLock<(&'b [T], Vec<usize>)>,
 }
 
-impl Drop for Workers<'_> {
+impl<T> Drop for Workers<'_, '_, T> {
     fn drop(&mut self) {
-        // (A no-op when the order was given: the workers then run out of items by themselves.)
-        let _ = self.taken.set(Vec::new());
+        // (A no-op when the items were found: the workers then run out of them by themselves.)
+        let _ = self.taken.set((&[], Vec::new()));
         for w in self.threads.drain(..) {
             let _ = w.join();
         }
