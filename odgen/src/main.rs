@@ -49,30 +49,43 @@ enum Command {
     BenchRead(cmd::bench_read::Args),
 }
 
-/// Each subcommand: its name, what `odgen --help` says of it, and the `Args` that define its
-/// arguments (the line said of a subcommand is set again once its arguments are, which would
-/// otherwise put their struct's own description in its place).
+/// A subcommand's arguments, defined when clap first needs them (`UPDATE`: for
+/// `update_from_arg_matches`), with the subcommand's own description kept: `A`'s derive would
+/// put its struct's description in its place.
+fn deferred<A: clap::Args, const UPDATE: bool>(cmd: clap::Command) -> clap::Command {
+    let about = cmd.get_about().cloned();
+    let cmd = if UPDATE { A::augment_args_for_update(cmd) } else { A::augment_args(cmd) };
+    match about {
+        Some(about) => cmd.about(about),
+        None => cmd,
+    }
+    .long_about(None)
+}
+
+/// Each subcommand: its name, its `Args`, what `odgen --help` says of it, and whether it is
+/// hidden; its arguments are deferred ([`deferred`]).
 macro_rules! subcommands {
     ($( $variant:ident, $name:literal, $args:ty, $about:literal, $hide:literal; )*) => {
+        impl Command {
+            /// `cmd` with every subcommand, each one's arguments deferred ([`deferred`]).
+            fn with_subcommands(cmd: clap::Command, update: bool) -> clap::Command {
+                cmd$(.subcommand(
+                    clap::Command::new($name).about($about).long_about(None).hide($hide).defer(if update {
+                        deferred::<$args, true>
+                    } else {
+                        deferred::<$args, false>
+                    }),
+                ))*
+            }
+        }
+
         impl clap::Subcommand for Command {
             fn augment_subcommands(cmd: clap::Command) -> clap::Command {
-                cmd$(.subcommand(
-                    clap::Command::new($name)
-                        .about($about)
-                        .long_about(None)
-                        .hide($hide)
-                        .defer(|c| <$args as clap::Args>::augment_args(c).about($about).long_about(None)),
-                ))*
+                Command::with_subcommands(cmd, false)
             }
 
             fn augment_subcommands_for_update(cmd: clap::Command) -> clap::Command {
-                cmd$(.subcommand(
-                    clap::Command::new($name)
-                        .about($about)
-                        .long_about(None)
-                        .hide($hide)
-                        .defer(|c| <$args as clap::Args>::augment_args_for_update(c).about($about).long_about(None)),
-                ))*
+                Command::with_subcommands(cmd, true)
             }
 
             fn has_subcommand(name: &str) -> bool {
