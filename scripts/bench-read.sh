@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Read+validate throughput: our reader (release build of `odgen bench-read`) against
+# Read+validate throughput: our reader (`odgen bench-read`, odgen as installed) against
 # python-canopen's import_od, over the same files, in one run. Prints both figures and the ratio.
 #
 #   scripts/bench-read.sh [DIR_OR_FILES...]      default: $EDS_CORPUS_DIR or ../shared/eds-corpus
@@ -26,8 +26,13 @@ else
   inputs=("$corpus")
 fi
 target=${CARGO_TARGET_DIR:-$root/target}
-echo "building odgen (release)..." >&2
+# The binary measured is odgen as it is installed (scripts/odgen-dist.sh: the dist profile,
+# linked statically on Linux with glibc); the end-to-end figure of a plain
+# `cargo build --release` binary is printed too, last.
+echo "building odgen (scripts/odgen-dist.sh, and cargo build --release)..." >&2
+odgen=$("$root/scripts/odgen-dist.sh")
 cargo build --release -q -p odgen
+plain="$target/release/odgen"
 python=$(bash "$root/scripts/venv.sh")
 # The two sides run in alternating rounds (odgen, then python-canopen, ROUNDS times), so that a
 # change in the machine's speed during the measurement (a shared or virtual machine's speed
@@ -35,20 +40,22 @@ python=$(bash "$root/scripts/venv.sh")
 # side (odgen on one thread, odgen on every core, python-canopen); the figures below are totals
 # over the rounds, with the range of the per-round ratios.
 rounds=${ROUNDS:-8}
-ours_runs=() theirs_runs=() parallel_runs=() e2e_runs=()
+ours_runs=() theirs_runs=() parallel_runs=() e2e_runs=() plain_runs=()
 for _ in $(seq "$rounds"); do
-  ours_runs+=("$("$target/release/odgen" bench-read --jobs 1 --iterations "${OURS_ITERATIONS:-100}" "${inputs[@]}")")
-  parallel_runs+=("$("$target/release/odgen" bench-read --jobs 0 --iterations "${OURS_ITERATIONS:-100}" "${inputs[@]}")")
+  ours_runs+=("$("$odgen" bench-read --jobs 1 --iterations "${OURS_ITERATIONS:-100}" "${inputs[@]}")")
+  parallel_runs+=("$("$odgen" bench-read --jobs 0 --iterations "${OURS_ITERATIONS:-100}" "${inputs[@]}")")
   theirs_runs+=("$("$python" "$root/scripts/bench_read_canopen.py" "${PY_ITERATIONS:-1}" "${inputs[@]}")")
-  e2e_runs+=("$("$python" "$root/scripts/bench_check_e2e.py" "$target/release/odgen" "${E2E_RUNS:-10}" "${inputs[@]}")")
+  e2e_runs+=("$("$python" "$root/scripts/bench_check_e2e.py" "$odgen" "${E2E_RUNS:-10}" "${inputs[@]}")")
+  plain_runs+=("$("$python" "$root/scripts/bench_check_e2e.py" "$plain" "${E2E_RUNS:-10}" "${inputs[@]}")")
 done
-"$python" - "${#ours_runs[@]}" "${ours_runs[@]}" "${theirs_runs[@]}" "${parallel_runs[@]}" "${e2e_runs[@]}" <<'PY'
+"$python" - "${#ours_runs[@]}" "${ours_runs[@]}" "${theirs_runs[@]}" "${parallel_runs[@]}" "${e2e_runs[@]}" "${plain_runs[@]}" <<'PY'
 import json, sys
 n = int(sys.argv[1])
 ours_runs = [json.loads(a) for a in sys.argv[2:2 + n]]
 theirs_runs = [json.loads(a) for a in sys.argv[2 + n:2 + 2 * n]]
 parallel_runs = [json.loads(a) for a in sys.argv[2 + 2 * n:2 + 3 * n]]
 e2e_runs = [json.loads(a) for a in sys.argv[2 + 3 * n:2 + 4 * n]]
+plain_runs = [json.loads(a) for a in sys.argv[2 + 4 * n:2 + 5 * n]]
 
 def total(runs):
     """Per-pass figures over all rounds, as one run would give them."""
@@ -112,4 +119,8 @@ if theirs.get("cpu_ms_per_pass"):
     cpu_ratio = theirs["cpu_ms_per_pass"] / e2e_cpu
     print(f"end-to-end CPU time: odgen check {e2e_cpu:.3f} ms per run (user + system, process start included); "
           f"CPU-time ratio {cpu_ratio:.1f}x (target >= 100x: {'met' if cpu_ratio >= 100 else 'NOT met'})")
+plain_ms = sum(r["seconds"] for r in plain_runs) * 1e3 / sum(r["runs"] for r in plain_runs)
+plain_start = sum(r["start_ms_per_run"] * r["runs"] for r in plain_runs) / sum(r["runs"] for r in plain_runs)
+print(f"end to end, a plain `cargo build --release` binary (dynamically linked, release profile): "
+      f"{plain_ms:.3f} ms per run ({theirs['ms_per_pass'] / plain_ms:.1f}x), `odgen --version` {plain_start:.3f} ms")
 PY

@@ -34,6 +34,15 @@ cargo test --workspace --all-targets --locked --no-fail-fast
 
 step "binaries for the end-to-end tests"
 cargo build --workspace --bins --locked
+# Where cargo put them: $CARGO_TARGET_DIR when set (relative to the root, as cargo reads it).
+target=${CARGO_TARGET_DIR:-$root/target}
+case "$target" in /*) ;; *) target="$root/$target" ;; esac
+
+# odgen as the README installs it (the dist profile, linked statically on Linux with glibc):
+# it builds, it is static where it is meant to be, and it says what the test build says.
+step "odgen as installed (scripts/odgen-dist.sh)"
+dist=$("$root/scripts/odgen-dist.sh")
+"$PYTHON" "$root/scripts/check_dist.py" "$dist" "$target/debug/odgen"
 
 step "SocketCAN transport compiles"
 cargo check -p drive --features socketcan --locked
@@ -45,9 +54,6 @@ rustup target add thumbv7em-none-eabihf
 cargo xtask size
 
 step "pytest (python-canopen against the simulated drives)"
-# Where cargo put them: $CARGO_TARGET_DIR when set (relative to the root, as cargo reads it).
-target=${CARGO_TARGET_DIR:-$root/target}
-case "$target" in /*) ;; *) target="$root/$target" ;; esac
 export DRIVE_SIM="$target/debug/drive-sim"
 export ODGEN="$target/debug/odgen"
 set +e
