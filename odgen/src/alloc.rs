@@ -28,6 +28,8 @@ use std::ffi::c_void;
 
 use libmimalloc_sys as mi;
 
+use crate::arena;
+
 /// The alignment every mimalloc block has (`MI_INTPTR_SIZE`: its size classes are whole
 /// machine words, and its pages start at least that aligned).
 const WORD: usize = std::mem::size_of::<usize>();
@@ -101,6 +103,9 @@ const ARENA_RESERVE_KIB: std::ffi::c_long = 32 * 1024;
 unsafe impl GlobalAlloc for Mimalloc {
     #[inline]
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        if let Some(p) = from_arena(layout) {
+            return p;
+        }
         // SAFETY: see the impl.
         unsafe {
             match Path::of(layout.size(), layout.align()) {
@@ -115,6 +120,11 @@ unsafe impl GlobalAlloc for Mimalloc {
 
     #[inline]
     unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        if let Some(p) = from_arena(layout) {
+            // SAFETY: a block of at least `layout.size()` bytes (a reused one is not zero).
+            unsafe { p.write_bytes(0, layout.size()) };
+            return p;
+        }
         // SAFETY: see the impl.
         unsafe {
             match Path::of(layout.size(), layout.align()) {
@@ -128,13 +138,36 @@ unsafe impl GlobalAlloc for Mimalloc {
     }
 
     #[inline]
-    unsafe fn dealloc(&self, ptr: *mut u8, _layout: Layout) {
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        if arena::contains(ptr) {
+            // SAFETY: an arena block made for `layout` (the caller's contract).
+            return unsafe { arena::free(ptr, layout.size()) };
+        }
         // SAFETY: `ptr` came from one of the functions above (the caller's contract).
         unsafe { mi::mi_free(ptr as *mut c_void) }
     }
 
     #[inline]
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        if arena::contains(ptr) {
+            // A size of the same class keeps its block; otherwise a new block (the arena's or
+            // mimalloc's), the bytes copied, and the old block given back once that succeeded.
+            if new_size <= arena::MAX_BLOCK && arena::class(new_size).0 == arena::class(layout.size()).0 {
+                return ptr;
+            }
+            // SAFETY: the caller's contract: `new_size` is non-zero and, rounded up to
+            // `layout.align()`, does not overflow.
+            let new = unsafe { self.alloc(Layout::from_size_align_unchecked(new_size, layout.align())) };
+            if !new.is_null() {
+                // SAFETY: both blocks hold at least the bytes copied and do not overlap; the
+                // old block is the arena's, made for `layout`, and no longer used.
+                unsafe {
+                    std::ptr::copy_nonoverlapping(ptr, new, layout.size().min(new_size));
+                    arena::free(ptr, layout.size());
+                }
+            }
+            return new;
+        }
         // SAFETY: see the impl; `ptr` came from one of the functions above with `layout`.
         // `mi_realloc_aligned` of a block that is not aligned moves it to one that is (the
         // bytes kept as `mi_realloc` keeps them).
@@ -153,6 +186,17 @@ unsafe impl GlobalAlloc for Mimalloc {
             }
         }
     }
+}
+
+/// A block of the arena for `layout`, when it is open and serves that size and alignment.
+#[inline]
+fn from_arena(layout: Layout) -> Option<*mut u8> {
+    if layout.size() > arena::MAX_BLOCK || layout.align() > arena::ALIGN {
+        return None;
+    }
+    // SAFETY: the size is at most MAX_BLOCK and, a GlobalAlloc request, not zero.
+    let p = unsafe { arena::alloc(layout.size()) };
+    (!p.is_null()).then_some(p)
 }
 
 /// mimalloc's `MI_MAX_ALIGN_SIZE` on 64-bit targets: blocks of at least this size are aligned

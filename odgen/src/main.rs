@@ -9,6 +9,7 @@ use std::process::ExitCode;
 use clap::Parser;
 
 mod alloc;
+mod arena;
 mod cmd;
 mod yaml;
 

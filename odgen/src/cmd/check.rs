@@ -236,10 +236,16 @@ pub fn run(args: Args) -> ExitCode {
     let expand = || expanded.get_or_init(|| super::expand_folders(&args.files));
     let jobs = if jobs > 1 && args.files.len() >= jobs { jobs } else { jobs.min(expand().0.len().max(1)) };
     let probes: std::sync::OnceLock<Vec<std::io::Result<eds::Probed<'_>>>> = std::sync::OnceLock::new();
+    // The files' memory comes from the arena (`crate::arena`) when they add up to enough for it
+    // to pay; a thread other than this one fills its second huge page before it starts reading.
     let find = || {
         let (files, found) = expand();
         let probed = probes.get_or_init(|| files.iter().zip(found).map(|(path, found)| found.probe(path)).collect());
-        (files.as_slice(), super::largest_first(probed.iter().map(|p| p.as_ref().map_or(0, |p| p.len()))))
+        let sizes = || probed.iter().map(|p| p.as_ref().map_or(0, |p| p.len()));
+        if sizes().sum::<u64>() >= crate::arena::WORTH_OPENING {
+            crate::arena::open();
+        }
+        (files.as_slice(), super::largest_first(sizes()))
     };
     let read = |i: usize, _: &PathBuf| {
         // (Set by `order`, which runs before any file is read.)
@@ -262,8 +268,14 @@ pub fn run(args: Args) -> ExitCode {
         // One thread: each file's report is rendered straight into the output, which writes it
         // as it fills, rather than into blocks handed over (a 200 KB report was four fresh
         // 64 KiB blocks, then copied in part), in the files' order as it comes.
+        let mut bytes = 0u64;
         for (path, found) in files.iter().zip(found) {
             let read = found.probe(path).and_then(|probed| {
+                // (The arena once the files read add up to enough, as with several threads.)
+                bytes += probed.len();
+                if bytes >= crate::arena::WORTH_OPENING {
+                    crate::arena::open();
+                }
                 check_file(&probed, &options, format, level, &mut out, |writes, out| separate(writes, &mut any, out))
             });
             match read {
@@ -272,7 +284,7 @@ pub fn run(args: Args) -> ExitCode {
             }
         }
     } else {
-        super::par_each(jobs, find, read, |path, report| {
+        super::par_each(jobs, find, crate::arena::warm, read, |path, report| {
             let report = match report {
                 Ok(r) => r,
                 Err(e) => return cannot_read(path, e, &mut unreadable),

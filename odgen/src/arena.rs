@@ -1,0 +1,381 @@
+//! The working memory of a run over many files, on transparent huge pages.
+//!
+//! A run of `odgen check` is a few milliseconds, and every page of memory it touches is a fresh
+//! one: a page fault, about 2.2 us on our VMs, and more work for the kernel at exit (about 2.9
+//! us a page end to end, measured by touching extra pages). With mimalloc alone the corpus
+//! check touched about 740 pages of heap on two threads, a third of the run's time. Most of
+//! that memory is in use, not wasted: packing the same blocks tightly (below, on ordinary
+//! pages) saved only 30 of them.
+//!
+//! What is cheaper is fewer, larger pages. The arena is 4 MiB, aligned to 2 MiB and advised
+//! for transparent huge pages (`MADV_HUGEPAGE`): the kernel fills each 2 MiB of it with one
+//! fault, zeroing a huge page (150 to 250 us), instead of 512. Blocks are packed into it from
+//! the start, so a run touches only as many huge pages as it needs; mimalloc's own huge-page
+//! mode spread a run's memory over seven to fourteen 2 MiB ranges of its arena (small, medium
+//! and large pages each elsewhere), each zeroed whole.
+//!
+//! The arena serves requests up to [`MAX_BLOCK`] bytes aligned to at most 16, in 52 size
+//! classes (16-byte steps up to 128 bytes, then four a doubling: at most a quarter wasted).
+//! Each thread carves blocks from 64 KiB chunks it takes in turn from the arena, and keeps the
+//! blocks freed on it in one list per class (a freed block holds the next one's address), from
+//! which that thread reuses them first: a block may be freed on another thread than the one
+//! that made it, and is then that thread's to reuse. Nothing is returned to the system before
+//! the process ends, and blocks of one class are never cut for another: the arena's size bounds
+//! what this keeps. What it cannot serve (larger or more aligned requests, or any once it is
+//! full) the caller takes from mimalloc; a block is the arena's if its address is in it.
+//!
+//! It is opened by `odgen check` when the files it is given add up to [`WORTH_OPENING`] bytes
+//! or more (a smaller run touches fewer pages than a huge page's zeroing costs). Where there
+//! are no transparent huge pages (another OS, or the system's setting `never`) it is still a
+//! packed arena of ordinary pages, or is not opened at all.
+
+use std::cell::UnsafeCell;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+
+/// The arena's size: two huge pages.
+pub(crate) const SIZE: usize = 4 << 20;
+
+/// A transparent huge page on x86_64 and aarch64 (4 KiB base pages).
+const HUGE: usize = 2 << 20;
+
+/// The largest request the arena serves.
+pub(crate) const MAX_BLOCK: usize = 256 << 10;
+
+/// The alignment every arena block has (class sizes are multiples of 16, chunks are aligned).
+pub(crate) const ALIGN: usize = 16;
+
+/// What a thread takes from the arena at a time to carve blocks from.
+const CHUNK: usize = 64 << 10;
+
+/// The number of size classes ([`class`]).
+const CLASSES: usize = 52;
+
+/// The input size from which `odgen check` opens the arena.
+pub(crate) const WORTH_OPENING: u64 = 128 << 10;
+
+/// The arena's first byte; [`CLOSED`] until it is opened (then never changed).
+static BASE: AtomicUsize = AtomicUsize::new(CLOSED);
+
+/// A `BASE` that no pointer is within `SIZE` of: the top of the address space, which user
+/// memory never reaches, so that [`contains`] needs no other test while the arena is closed.
+const CLOSED: usize = usize::MAX & !(SIZE - 1);
+
+/// The start of the arena's next free chunk.
+static NEXT: AtomicUsize = AtomicUsize::new(0);
+
+/// Whether the second huge page was asked for ([`warm`]).
+static WARMED: AtomicBool = AtomicBool::new(false);
+
+/// A thread's part: the chunk it carves from, and the blocks freed on it by class.
+struct Local {
+    /// The next free byte of the current chunk.
+    bump: usize,
+    /// One past the current chunk.
+    limit: usize,
+    /// Each class's list of freed blocks (0: empty).
+    free: [usize; CLASSES],
+}
+
+thread_local! {
+    // (Const-initialised and without `Drop`: reached without a check or a registration, and
+    // never gone, even while the thread's other thread-locals are dropped.)
+    static LOCAL: UnsafeCell<Local> = const { UnsafeCell::new(Local { bump: 0, limit: 0, free: [0; CLASSES] }) };
+}
+
+/// The size class of a request of `size` bytes (1 to [`MAX_BLOCK`]): its index and the size of
+/// its blocks. 16 to 128 bytes in steps of 16, then four classes between powers of two.
+#[inline]
+pub(crate) fn class(size: usize) -> (usize, usize) {
+    debug_assert!(size <= MAX_BLOCK);
+    if size <= 128 {
+        let i = size.max(1).div_ceil(16);
+        (i - 1, i * 16)
+    } else {
+        // log: the power of two below `size` (7 for 129..=256); the classes between 2^log and
+        // 2^(log+1) are 2^log + k * 2^(log-2), k = 1..=4.
+        let log = (usize::BITS - 1 - (size - 1).leading_zeros()) as usize;
+        let step = 1usize << (log - 2);
+        let block = (size + step - 1) & !(step - 1);
+        (8 + (log - 7) * 4 + (block >> (log - 2)) - 5, block)
+    }
+}
+
+/// Whether `p` is a block of the arena.
+#[inline]
+pub(crate) fn contains(p: *mut u8) -> bool {
+    (p as usize).wrapping_sub(BASE.load(Ordering::Relaxed)) < SIZE
+}
+
+/// Opens the arena (once; later calls change nothing). False when it could not be mapped.
+pub(crate) fn open() -> bool {
+    if BASE.load(Ordering::Acquire) != CLOSED {
+        return true;
+    }
+    #[cfg(target_os = "linux")]
+    {
+        let len = SIZE + HUGE;
+        // SAFETY: a new private anonymous mapping; nothing else refers to it.
+        let p = unsafe {
+            libc::mmap(
+                std::ptr::null_mut(),
+                len,
+                libc::PROT_READ | libc::PROT_WRITE,
+                libc::MAP_PRIVATE | libc::MAP_ANONYMOUS | libc::MAP_NORESERVE,
+                -1,
+                0,
+            )
+        };
+        if p == libc::MAP_FAILED {
+            return false;
+        }
+        let start = (p as usize + HUGE - 1) & !(HUGE - 1);
+        // (Without transparent huge pages this fails, and the arena has ordinary pages.)
+        // SAFETY: advice on part of the mapping just made.
+        unsafe { libc::madvise(start as *mut libc::c_void, SIZE, libc::MADV_HUGEPAGE) };
+        NEXT.store(start, Ordering::Relaxed);
+        // (Release: a thread that sees the arena open sees `NEXT` set.)
+        if BASE.compare_exchange(CLOSED, start, Ordering::Release, Ordering::Acquire).is_err() {
+            // Opened meanwhile on another thread: this mapping is not needed.
+            // SAFETY: the mapping made above, which nothing has used.
+            unsafe { libc::munmap(p, len) };
+        }
+        true
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        false
+    }
+}
+
+/// Has the kernel fill the arena's second huge page now, on the calling thread: the thread
+/// that opened the arena fills the first as it allocates, and a thread with nothing to do yet
+/// (a worker waiting for files) takes this one off its path. Once per run; nothing when the
+/// arena is closed or the kernel cannot (`MADV_POPULATE_WRITE` is Linux 5.14 and later: the
+/// page is then filled when first touched).
+pub(crate) fn warm() {
+    let base = BASE.load(Ordering::Acquire);
+    if base == CLOSED || WARMED.swap(true, Ordering::Relaxed) {
+        return;
+    }
+    #[cfg(target_os = "linux")]
+    // SAFETY: advice on the arena's own mapping; filling pages changes no byte (fresh pages are
+    // zero, and a page in use is left as it is).
+    unsafe {
+        libc::madvise((base + HUGE) as *mut libc::c_void, SIZE - HUGE, libc::MADV_POPULATE_WRITE);
+    }
+}
+
+/// A block of at least `size` bytes (1 to [`MAX_BLOCK`]), aligned to [`ALIGN`], or null when
+/// the arena is closed or full.
+///
+/// # Safety
+/// `size` is 1 to [`MAX_BLOCK`].
+#[inline]
+pub(crate) unsafe fn alloc(size: usize) -> *mut u8 {
+    let base = BASE.load(Ordering::Acquire);
+    if base == CLOSED {
+        return std::ptr::null_mut();
+    }
+    let (i, block) = class(size);
+    // (`try_with` cannot fail for this thread-local, which has no destructor; a failure would
+    // only send the request to mimalloc.)
+    LOCAL
+        .try_with(|l| {
+            // SAFETY: this thread's own state; nothing here allocates or frees, so it is not
+            // reached again while borrowed.
+            let l = unsafe { &mut *l.get() };
+            let head = l.free[i];
+            if head != 0 {
+                // SAFETY: a block freed on this thread, whose first word holds the next one.
+                l.free[i] = unsafe { *(head as *const usize) };
+                return head as *mut u8;
+            }
+            if l.limit - l.bump >= block {
+                let p = l.bump;
+                l.bump += block;
+                return p as *mut u8;
+            }
+            if block >= CHUNK {
+                // A block of a chunk or more is a chunk of its own; the current one stays.
+                return take(base, block).map_or(std::ptr::null_mut(), |c| c as *mut u8);
+            }
+            match take(base, CHUNK) {
+                Some(c) => {
+                    l.bump = c + block;
+                    l.limit = c + CHUNK;
+                    c as *mut u8
+                }
+                None => std::ptr::null_mut(),
+            }
+        })
+        .unwrap_or(std::ptr::null_mut())
+}
+
+/// The next `len` bytes of the arena, if it has them.
+#[inline]
+fn take(base: usize, len: usize) -> Option<usize> {
+    let end = base + SIZE;
+    let mut at = NEXT.load(Ordering::Relaxed);
+    loop {
+        if end - at < len {
+            return None;
+        }
+        match NEXT.compare_exchange_weak(at, at + len, Ordering::Relaxed, Ordering::Relaxed) {
+            Ok(_) => return Some(at),
+            Err(now) => at = now,
+        }
+    }
+}
+
+/// Gives back a block of the arena, to be reused by this thread.
+///
+/// # Safety
+/// `p` is a block of the arena ([`contains`]) that nothing refers to any more, made for
+/// `size` bytes or for a size of the same class.
+#[inline]
+pub(crate) unsafe fn free(p: *mut u8, size: usize) {
+    let (i, _) = class(size);
+    // (Were the thread-local gone, the block would stay unused until the process ends.)
+    let _ = LOCAL.try_with(|l| {
+        // SAFETY: this thread's own state (see `alloc`); the block is unused and at least 16
+        // bytes long and 16-aligned, so it holds the list's next address.
+        let l = unsafe { &mut *l.get() };
+        unsafe { *(p as *mut usize) = l.free[i] };
+        l.free[i] = p as usize;
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The classes cover 1 to MAX_BLOCK in order, each block at least the request, at most a
+    /// quarter (or 15 bytes) more, a multiple of 16; 52 of them.
+    #[test]
+    fn size_classes_are_ordered_tight_and_aligned() {
+        let mut last = (0usize, 16usize);
+        for size in 1..=MAX_BLOCK {
+            let (i, block) = class(size);
+            assert!(block >= size, "{size}");
+            assert_eq!(block % ALIGN, 0, "{size}");
+            assert!(block - size < 16 || (block - size) * 4 <= size, "{size}: {block}");
+            assert!(i < CLASSES);
+            assert!(i == last.0 || i == last.0 + 1, "{size}: class {i} after {}", last.0);
+            if i == last.0 {
+                assert_eq!(block, last.1, "{size}");
+            }
+            last = (i, block);
+        }
+        assert_eq!(last, (CLASSES - 1, MAX_BLOCK));
+    }
+
+    /// With the arena open, small blocks come from it, are aligned and writable, are reused
+    /// once freed, and mimalloc's blocks are told apart from them.
+    #[test]
+    fn blocks_come_from_the_open_arena_and_are_reused() {
+        assert!(open());
+        assert!(open(), "opening again changes nothing");
+        let base = BASE.load(Ordering::Relaxed);
+        assert_eq!(base % HUGE, 0);
+        // SAFETY: sizes within 1..=MAX_BLOCK; each block used within its size and freed once.
+        unsafe {
+            let a = alloc(40);
+            let b = alloc(40);
+            assert!(contains(a) && contains(b) && a != b);
+            assert_eq!(a as usize % ALIGN, 0);
+            a.write_bytes(0xAB, 40);
+            b.write_bytes(0xCD, 48);
+            free(a, 40);
+            // (The same class, another size in it: the block just freed.)
+            assert_eq!(alloc(33), a);
+            let big = alloc(MAX_BLOCK);
+            assert!(contains(big));
+            big.write_bytes(1, MAX_BLOCK);
+            free(big, MAX_BLOCK);
+            free(a, 33);
+            free(b, 40);
+        }
+        // (Larger than the arena serves: mimalloc's, through the global allocator.)
+        let large = vec![0u8; MAX_BLOCK + 1];
+        assert!(!contains(large.as_ptr() as *mut u8));
+        assert!(!contains(std::ptr::null_mut()));
+        assert!(!contains(usize::MAX as *mut u8));
+        warm();
+    }
+
+    /// Many threads allocating, growing, shrinking and freeing blocks of every size through
+    /// the global allocator with the arena open (until it is full, and past), some blocks
+    /// freed on another thread than the one that made them: every block keeps its bytes.
+    #[test]
+    fn threads_keep_their_bytes_through_the_global_allocator() {
+        assert!(open());
+        let (tx, rx) = std::sync::mpsc::channel::<Vec<u8>>();
+        let check = |v: &Vec<u8>| {
+            let seed = v.len() as u8;
+            assert!(v.iter().enumerate().all(|(i, &b)| b == seed.wrapping_add(i as u8)), "a block lost its bytes");
+        };
+        let fill = |len: usize| -> Vec<u8> {
+            let seed = len as u8;
+            (0..len).map(|i| seed.wrapping_add(i as u8)).collect()
+        };
+        std::thread::scope(|s| {
+            for t in 0..4u64 {
+                let tx = tx.clone();
+                s.spawn(move || {
+                    let mut x = 0x9E37_79B9_7F4A_7C15u64 ^ t;
+                    let mut next = move || {
+                        x ^= x << 13;
+                        x ^= x >> 7;
+                        x ^= x << 17;
+                        x
+                    };
+                    let mut kept: Vec<Vec<u8>> = Vec::new();
+                    for round in 0..3000 {
+                        let r = next();
+                        // Mostly small, some up to the largest arena block and beyond.
+                        let len = match r % 10 {
+                            0 => (r >> 8) as usize % (MAX_BLOCK + 4096) + 1,
+                            1..=3 => (r >> 8) as usize % 4096 + 1,
+                            _ => (r >> 8) as usize % 200 + 1,
+                        };
+                        let mut v = fill(len);
+                        if r % 7 == 0 {
+                            // Grown by pushes (realloc through the classes), then cut back.
+                            let more = (r >> 20) as usize % 3000;
+                            v.clear();
+                            v.extend((0..len + more).map(|i| ((len + more) as u8).wrapping_add(i as u8)));
+                            v.truncate(len);
+                            v.shrink_to_fit();
+                            v.iter_mut().enumerate().for_each(|(i, b)| *b = (len as u8).wrapping_add(i as u8));
+                        }
+                        check(&v);
+                        match r % 3 {
+                            0 => tx.send(v).expect("receiver"),
+                            1 => kept.push(v),
+                            _ => drop(v),
+                        }
+                        if round % 50 == 0 {
+                            kept.iter().for_each(check);
+                            kept.retain(|_| next() % 2 == 0);
+                        }
+                    }
+                    kept.iter().for_each(check);
+                });
+            }
+            drop(tx);
+            s.spawn(move || {
+                for v in rx {
+                    check(&v);
+                }
+            });
+        });
+    }
+
+    /// A full arena serves nothing more: the caller goes to mimalloc.
+    #[test]
+    fn a_full_arena_gives_null() {
+        assert!(open());
+        let base = BASE.load(Ordering::Relaxed);
+        assert_eq!(take(base, SIZE + 1), None);
+    }
+}
