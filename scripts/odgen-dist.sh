@@ -6,7 +6,7 @@
 #   scripts/odgen-dist.sh              build; prints target/<host>/dist/odgen
 #   scripts/odgen-dist.sh --install    cargo install --path odgen, the same way
 #
-# How (see ARCHITECTURE.md, "The odgen binary"):
+# How (see ARCHITECTURE.md, "Reading speed"):
 # - the `dist` profile (Cargo.toml): the release profile with whole-program optimisation (fat
 #   LTO, one codegen unit);
 # - on Linux with glibc, linked statically (`-C target-feature=+crt-static`, a static-pie
