@@ -169,6 +169,25 @@ fn plain_check(mut argv: impl Iterator<Item = std::ffi::OsString>) -> Option<cmd
     })
 }
 
+/// Ends the process with `code` at once, once a command has written everything: the C
+/// runtime's exit handlers and the runtimes' clean-up (mimalloc collecting its heaps, each
+/// thread-local dropped) only free what the kernel frees with the process, and took about
+/// 0.1 ms of `odgen check` on the corpus (400 alternating runs, mean 5.86 -> 5.75 ms).
+/// Standard output is written through without a buffer left ([`cmd::write_stdout`] flushes
+/// each write), standard error has none; no other thread is running.
+fn exit_now(code: u8) -> ! {
+    use std::io::Write as _;
+    let _ = std::io::stdout().flush();
+    let _ = std::io::stderr().flush();
+    #[cfg(unix)]
+    // SAFETY: `_exit` ends the process; nothing is left to run or to write.
+    unsafe {
+        libc::_exit(i32::from(code))
+    }
+    #[cfg(not(unix))]
+    std::process::exit(i32::from(code))
+}
+
 fn main() -> ExitCode {
     alloc::tune();
     let command = match plain_check(std::env::args_os()) {
@@ -176,7 +195,7 @@ fn main() -> ExitCode {
         None => Cli::parse().command,
     };
     match command {
-        Command::Check(args) => cmd::check::run(args),
+        Command::Check(args) => exit_now(cmd::check::run(args)),
         Command::Fmt(args) => cmd::fmt::run(args),
         Command::Dump(args) => cmd::dump::run(args),
         Command::Dcf(args) => cmd::dcf::run(args),

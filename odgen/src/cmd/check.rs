@@ -7,7 +7,6 @@
 //! written directly, not through a value tree per diagnostic.
 
 use std::path::PathBuf;
-use std::process::ExitCode;
 
 use eds::{Diagnostic, Severity};
 
@@ -200,8 +199,8 @@ impl Counts {
 }
 
 /// Runs the subcommand. Exit code 0 when no file has an error, 1 when one has, 2 when a file
-/// could not be read at all.
-pub fn run(args: Args) -> ExitCode {
+/// could not be read at all. Everything is written when it returns.
+pub fn run(args: Args) -> u8 {
     let options = if args.strict { eds::Options::strict() } else { eds::Options::lenient() };
     let level = match (args.level, args.notes, args.format) {
         (Some(l), _, _) => l,
@@ -336,11 +335,11 @@ pub fn run(args: Args) -> ExitCode {
     }
     out.finish();
     if !unreadable.is_empty() {
-        ExitCode::from(EXIT_TROUBLE)
+        EXIT_TROUBLE
     } else if counts.errors > 0 {
-        ExitCode::from(EXIT_FAILURE)
+        EXIT_FAILURE
     } else {
-        ExitCode::SUCCESS
+        0
     }
 }
 
