@@ -25,9 +25,9 @@
 //! full) the caller takes from mimalloc; a block is the arena's if its address is in it.
 //!
 //! It is opened by `odgen check` when the files it is given add up to [`WORTH_OPENING`] bytes
-//! or more (a smaller run touches fewer pages than a huge page's zeroing costs). Where there
-//! are no transparent huge pages (another OS, or the system's setting `never`) it is still a
-//! packed arena of ordinary pages, or is not opened at all.
+//! or more (a smaller run touches fewer pages than a huge page's zeroing costs), and only where
+//! the process gets transparent huge pages (Linux, the system's setting `always` or `madvise`,
+//! not turned off for the process): on ordinary pages it would save few faults.
 
 use std::cell::UnsafeCell;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -106,45 +106,80 @@ pub(crate) fn contains(p: *mut u8) -> bool {
     (p as usize).wrapping_sub(BASE.load(Ordering::Relaxed)) < SIZE
 }
 
-/// Opens the arena (once; later calls change nothing). False when it could not be mapped.
+/// Opens the arena (once; later calls change nothing): whether it is open. It is not when it
+/// could not be mapped, or when this process gets no transparent huge pages ([`huge_pages`]):
+/// on ordinary pages the arena saves few faults, and filling its second half would cost a
+/// worker 512 of them.
 pub(crate) fn open() -> bool {
-    if BASE.load(Ordering::Acquire) != CLOSED {
-        return true;
-    }
-    #[cfg(target_os = "linux")]
-    {
-        let len = SIZE + HUGE;
-        // SAFETY: a new private anonymous mapping; nothing else refers to it.
-        let p = unsafe {
-            libc::mmap(
-                std::ptr::null_mut(),
-                len,
-                libc::PROT_READ | libc::PROT_WRITE,
-                libc::MAP_PRIVATE | libc::MAP_ANONYMOUS | libc::MAP_NORESERVE,
-                -1,
-                0,
-            )
-        };
-        if p == libc::MAP_FAILED {
-            return false;
+    open_with(true)
+}
+
+/// [`open`]; `require_huge_pages` false opens it on any machine (the tests, which hold the
+/// arena to its contract whatever pages it has).
+fn open_with(require_huge_pages: bool) -> bool {
+    // (Once: a mapping is made and published by one thread only. Not called by the allocator,
+    // so `Once`, which never allocates anyway, may block.)
+    static OPENING: std::sync::Once = std::sync::Once::new();
+    OPENING.call_once(|| {
+        #[cfg(target_os = "linux")]
+        if !require_huge_pages || huge_pages() {
+            publish_new();
         }
-        let start = (p as usize + HUGE - 1) & !(HUGE - 1);
-        // (Without transparent huge pages this fails, and the arena has ordinary pages.)
-        // SAFETY: advice on part of the mapping just made.
-        unsafe { libc::madvise(start as *mut libc::c_void, SIZE, libc::MADV_HUGEPAGE) };
-        NEXT.store(start, Ordering::Relaxed);
-        // (Release: a thread that sees the arena open sees `NEXT` set.)
-        if BASE.compare_exchange(CLOSED, start, Ordering::Release, Ordering::Acquire).is_err() {
-            // Opened meanwhile on another thread: this mapping is not needed.
-            // SAFETY: the mapping made above, which nothing has used.
-            unsafe { libc::munmap(p, len) };
-        }
-        true
+        #[cfg(not(target_os = "linux"))]
+        let _ = require_huge_pages;
+    });
+    BASE.load(Ordering::Acquire) != CLOSED
+}
+
+/// Maps the arena, aligned to a huge page and advised for them, and opens it.
+#[cfg(target_os = "linux")]
+fn publish_new() {
+    let len = SIZE + HUGE;
+    // SAFETY: a new private anonymous mapping; nothing else refers to it. (It is never
+    // unmapped: the arena lasts as long as the process.)
+    let p = unsafe {
+        libc::mmap(
+            std::ptr::null_mut(),
+            len,
+            libc::PROT_READ | libc::PROT_WRITE,
+            libc::MAP_PRIVATE | libc::MAP_ANONYMOUS | libc::MAP_NORESERVE,
+            -1,
+            0,
+        )
+    };
+    if p == libc::MAP_FAILED {
+        return;
     }
-    #[cfg(not(target_os = "linux"))]
-    {
-        false
+    let start = (p as usize + HUGE - 1) & !(HUGE - 1);
+    // SAFETY: advice on part of the mapping just made.
+    unsafe { libc::madvise(start as *mut libc::c_void, SIZE, libc::MADV_HUGEPAGE) };
+    NEXT.store(start, Ordering::Relaxed);
+    // (Release: a thread that sees the arena open sees `NEXT` set.)
+    BASE.store(start, Ordering::Release);
+}
+
+/// Whether memory this process advises for transparent huge pages gets them: the system's
+/// setting is `always` or `madvise` (not `never`, and the file exists: the kernel has them),
+/// and the process has not turned them off (`PR_SET_THP_DISABLE`; mimalloc does so when told
+/// `MIMALLOC_ALLOW_THP=0`).
+#[cfg(target_os = "linux")]
+fn huge_pages() -> bool {
+    // SAFETY: PR_GET_THP_DISABLE takes no pointer; it returns 1 when disabled, -1 on error.
+    if unsafe { libc::prctl(libc::PR_GET_THP_DISABLE, 0, 0, 0, 0) } == 1 {
+        return false;
     }
+    let mut setting = [0u8; 64];
+    let read = std::fs::File::open("/sys/kernel/mm/transparent_hugepage/enabled")
+        .and_then(|mut f| std::io::Read::read(&mut f, &mut setting));
+    thp_setting_allows(read.map(|n| &setting[..n]).ok())
+}
+
+/// Whether the text of `/sys/kernel/mm/transparent_hugepage/enabled` (`None`: not there) lets
+/// an advised mapping have huge pages: the choice in brackets is `always` or `madvise`.
+fn thp_setting_allows(setting: Option<&[u8]>) -> bool {
+    let Some(text) = setting else { return false };
+    let chosen = text.split(|&b| b == b'[').nth(1).and_then(|rest| rest.split(|&b| b == b']').next());
+    matches!(chosen, Some(b"always" | b"madvise"))
 }
 
 /// Has the kernel fill the arena's second huge page now, on the calling thread: the thread
@@ -269,12 +304,23 @@ mod tests {
         assert_eq!(last, (CLASSES - 1, MAX_BLOCK));
     }
 
+    /// The arena is opened only where the system's setting gives advised memory huge pages.
+    #[test]
+    fn the_system_setting_decides_whether_huge_pages_come() {
+        assert!(thp_setting_allows(Some(b"always [madvise] never\n")));
+        assert!(thp_setting_allows(Some(b"[always] madvise never\n")));
+        assert!(!thp_setting_allows(Some(b"always madvise [never]\n")));
+        assert!(!thp_setting_allows(Some(b"")));
+        assert!(!thp_setting_allows(Some(b"[")));
+        assert!(!thp_setting_allows(None));
+    }
+
     /// With the arena open, small blocks come from it, are aligned and writable, are reused
     /// once freed, and mimalloc's blocks are told apart from them.
     #[test]
     fn blocks_come_from_the_open_arena_and_are_reused() {
-        assert!(open());
-        assert!(open(), "opening again changes nothing");
+        assert!(open_with(false));
+        assert!(open_with(false), "opening again changes nothing");
         let base = BASE.load(Ordering::Relaxed);
         assert_eq!(base % HUGE, 0);
         // SAFETY: sizes within 1..=MAX_BLOCK; each block used within its size and freed once.
@@ -308,7 +354,7 @@ mod tests {
     /// freed on another thread than the one that made them: every block keeps its bytes.
     #[test]
     fn threads_keep_their_bytes_through_the_global_allocator() {
-        assert!(open());
+        assert!(open_with(false));
         let (tx, rx) = std::sync::mpsc::channel::<Vec<u8>>();
         let check = |v: &Vec<u8>| {
             let seed = v.len() as u8;
@@ -374,7 +420,7 @@ mod tests {
     /// A full arena serves nothing more: the caller goes to mimalloc.
     #[test]
     fn a_full_arena_gives_null() {
-        assert!(open());
+        assert!(open_with(false));
         let base = BASE.load(Ordering::Relaxed);
         assert_eq!(take(base, SIZE + 1), None);
     }
