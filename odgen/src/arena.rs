@@ -50,8 +50,8 @@ const CHUNK: usize = 64 << 10;
 /// The number of size classes ([`class`]).
 const CLASSES: usize = 52;
 
-/// The input size from which `odgen check` opens the arena.
-pub(crate) const WORTH_OPENING: u64 = 128 << 10;
+/// The input size from which the arena is opened ([`open_for`]).
+const WORTH_OPENING: u64 = 128 << 10;
 
 /// The arena's first byte; [`CLOSED`] until it is opened (then never changed).
 static BASE: AtomicUsize = AtomicUsize::new(CLOSED);
@@ -106,11 +106,18 @@ pub(crate) fn contains(p: *mut u8) -> bool {
     (p as usize).wrapping_sub(BASE.load(Ordering::Relaxed)) < SIZE
 }
 
+/// Opens the arena for a run whose files add up to `bytes`, if they are [`WORTH_OPENING`]:
+/// whether it is open. The one rule for both of `odgen check`'s ways (files found up front on
+/// several threads, or counted as they come on one).
+pub(crate) fn open_for(bytes: u64) -> bool {
+    bytes >= WORTH_OPENING && open()
+}
+
 /// Opens the arena (once; later calls change nothing): whether it is open. It is not when it
 /// could not be mapped, or when this process gets no transparent huge pages ([`huge_pages`]):
 /// on ordinary pages the arena saves few faults, and filling its second half would cost a
 /// worker 512 of them.
-pub(crate) fn open() -> bool {
+fn open() -> bool {
     open_with(true)
 }
 

@@ -241,9 +241,7 @@ pub fn run(args: Args) -> u8 {
         let (files, found) = expand();
         let probed = probes.get_or_init(|| files.iter().zip(found).map(|(path, found)| found.probe(path)).collect());
         let sizes = || probed.iter().map(|p| p.as_ref().map_or(0, |p| p.len()));
-        if sizes().sum::<u64>() >= crate::arena::WORTH_OPENING {
-            crate::arena::open();
-        }
+        crate::arena::open_for(sizes().sum());
         (files.as_slice(), super::largest_first(sizes()))
     };
     let read = |i: usize, _: &PathBuf| {
@@ -272,9 +270,7 @@ pub fn run(args: Args) -> u8 {
             let read = found.probe(path).and_then(|probed| {
                 // (The arena once the files read add up to enough, as with several threads.)
                 bytes += probed.len();
-                if bytes >= crate::arena::WORTH_OPENING {
-                    crate::arena::open();
-                }
+                crate::arena::open_for(bytes);
                 check_file(&probed, &options, format, level, &mut out, |writes, out| separate(writes, &mut any, out))
             });
             match read {
