@@ -159,14 +159,7 @@ fn plain_check(mut argv: impl Iterator<Item = std::ffi::OsString>) -> Option<cmd
     if files.is_empty() || files.iter().any(|f| matches!(f.as_os_str().as_encoded_bytes().first(), None | Some(b'-'))) {
         return None;
     }
-    Some(cmd::check::Args {
-        strict: false,
-        format: cmd::check::Format::Human,
-        level: None,
-        notes: false,
-        jobs: None,
-        files,
-    })
+    Some(cmd::check::Args::files_only(files))
 }
 
 /// Ends the process with `code` at once, once a command has written everything: the C

@@ -77,6 +77,15 @@ pub struct Args {
     pub files: Vec<PathBuf>,
 }
 
+impl Args {
+    /// The arguments of `odgen check FILES...` with no option: what clap gives for such a line
+    /// (its defaults above), for the line `main` parses without clap (held to clap's result by
+    /// a test there).
+    pub fn files_only(files: Vec<PathBuf>) -> Args {
+        Args { strict: false, format: Format::Human, level: None, notes: false, jobs: None, files }
+    }
+}
+
 /// What is kept of a file once it is read: its part of the output, rendered by the thread that
 /// read it, and its counts. The file's text, model and diagnostics are dropped there and then,
 /// so that the thread's next file reuses their memory, and rendering runs on every thread.
