@@ -145,10 +145,11 @@ pub fn parse_owned(name: &str, bytes: Vec<u8>, options: &Options) -> Parsed {
 /// `Reader` keeps those buffers: give each file back with [`Reader::recycle`] when done with it,
 /// and the next [`Reader::read_file`] reuses them. The results are those of [`read_file`]. The
 /// buffers are kept while the reader lives: about seven bytes of address space per byte of the
-/// largest file read (or of [`Reader::ROOM`], whichever is larger), of which memory only as far
-/// as they were written. They are made with room for files of [`Reader::ROOM`] bytes from the
-/// start, so that they are not replaced (by fresh memory) each time a file is larger than those
-/// before it.
+/// largest file read (or of its room, whichever is larger), of which memory only as far as they
+/// were written. [`Reader::new`] makes them with room for files of [`Reader::ROOM`] bytes from
+/// the start, so that they are not replaced (by fresh memory) each time a file is larger than
+/// those before it; a caller that gives the largest file first sizes them by that file
+/// ([`Reader::with_room`]`(0)`).
 pub struct Reader {
     /// The text of the last file given back: the next file is read into it.
     bytes: Vec<u8>,
@@ -166,10 +167,21 @@ impl Reader {
     /// largest of the 61 real files we test with has 142 KB).
     pub const ROOM: usize = 256 * 1024;
 
-    /// A reader with no buffers yet.
+    /// A reader with no buffers yet, which makes them with room for files of [`Reader::ROOM`]
+    /// bytes: for files in any order.
     pub fn new() -> Self {
+        Self::with_room(Self::ROOM)
+    }
+
+    /// A reader with no buffers yet, which makes them with room for files of `bytes` bytes, or
+    /// for the file read if it is larger. `0` sizes them by the first file read: for a caller
+    /// that gives its files largest first, whose buffers are then made once and are no larger
+    /// than that file needs. (Room never written costs only address space where the allocator
+    /// takes fresh pages from the system as they are touched; an allocator that packs blocks
+    /// densely, as `odgen check`'s arena does, fills its memory with it.)
+    pub fn with_room(bytes: usize) -> Self {
         let mut scratch = lower::Scratch::default();
-        scratch.room_for = Self::ROOM;
+        scratch.room_for = bytes;
         Reader { bytes: Vec::new(), scratch }
     }
 
@@ -181,7 +193,7 @@ impl Reader {
     /// [`Reader::read_file`] of a file [`probe`] has accepted (it is not probed again).
     pub fn read_probed(&mut self, probed: &Probed<'_>, options: &Options) -> std::io::Result<Parsed> {
         let path = probed.path;
-        let bytes = read_bytes_into(probed, std::mem::take(&mut self.bytes), Self::ROOM)?;
+        let bytes = read_bytes_into(probed, std::mem::take(&mut self.bytes), self.scratch.room_for)?;
         let source = source::SourceFile::decode_owned(path.display().to_string(), bytes);
         let document = ast::Document::new(source);
         let (model, diagnostics, not_kept) = lower::lower_reusing(&document, options, &mut self.scratch);

@@ -57,7 +57,7 @@ pub(crate) fn lower_reusing(
     let mut cx = Ctx::reusing(&doc.source, options.strictness, std::mem::take(&mut scratch.diags), scratch.room_for);
     cx.least_kept = options.least_kept();
     cx.pool = std::mem::take(&mut scratch.pool);
-    cx.pool.room = doc.source.text.len().max(scratch.room_for);
+    cx.pool.room = scratch.room_for;
     let mut collected = sections::collect(doc, &mut cx, scratch);
     let secs = collected.sections();
     let mut model = Model::default();

@@ -40,9 +40,34 @@ fn seen(p: &Parsed) -> (String, eds::Model, Vec<eds::Diagnostic>, Vec<String>) {
     (p.document.source.text.clone(), p.model.clone(), p.diagnostics.clone(), rendered)
 }
 
+/// Files denser than the reader's estimates of lines, entries and sections per byte (which
+/// size its buffers before a file is read): the buffers grow while such a file is read.
+fn dense_files(dir: &Path) -> Vec<PathBuf> {
+    let mut sections = String::new();
+    for i in 0..3000u32 {
+        // A section every 12 bytes or so, each with one short entry.
+        sections.push_str(&format!("[{:X}]\nA=1\n", 0x2000 + i));
+    }
+    let mut lines = String::from("[DeviceInfo]\n");
+    for i in 0..20000u32 {
+        // A line every 4 to 6 bytes, and lines ended by a lone CR as well.
+        lines.push_str(&format!("K{}={}", i % 100, if i % 3 == 0 { "\r" } else { "\n" }));
+    }
+    let mut paths = Vec::new();
+    for (name, text) in [("sections.eds", sections), ("lines.eds", lines)] {
+        let path = dir.join(name);
+        std::fs::write(&path, text).expect("write");
+        paths.push(path);
+    }
+    paths
+}
+
 #[test]
 fn a_reader_reads_every_file_as_read_file_does_in_any_order() {
-    let files = inputs();
+    let dir = std::env::temp_dir().join(format!("eds-reader-dense-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let mut files = inputs();
+    files.extend(dense_files(&dir));
     let mut orders = vec![files.clone(), files.iter().rev().cloned().collect::<Vec<_>>()];
     // Largest first, then smallest first: buffers that are too large, then too small.
     let mut by_size = files.clone();
@@ -51,8 +76,10 @@ fn a_reader_reads_every_file_as_read_file_does_in_any_order() {
     orders.push(by_size.into_iter().rev().collect());
     for options in [Options::lenient(), Options::strict()] {
         let expected: Vec<_> = files.iter().map(|p| seen(&eds::read_file(p, &options).expect("readable"))).collect();
-        for order in &orders {
-            let mut reader = eds::Reader::new();
+        // Readers with room for large files from the start, sized by the first file read, and
+        // with room for small files only.
+        for (order, room) in orders.iter().flat_map(|o| [(o, None), (o, Some(0)), (o, Some(4096))]) {
+            let mut reader = room.map_or_else(eds::Reader::new, eds::Reader::with_room);
             for (i, path) in order.iter().enumerate() {
                 let parsed = reader.read_file(path, &options).expect("readable");
                 let at = files.iter().position(|f| f == path).expect("listed");
@@ -64,6 +91,7 @@ fn a_reader_reads_every_file_as_read_file_does_in_any_order() {
             }
         }
     }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

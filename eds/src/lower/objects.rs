@@ -780,10 +780,10 @@ fn numbered<'s, 'a>(
 
 /// Lowers every object section into `model.objects`.
 pub(crate) fn lower_objects(secs: &Sections<'_>, lists: &Lists, model: &mut Model, cx: &mut Ctx<'_>) {
-    // (The lists are made on the buffers of the last file's, with room for a file of the size
-    // the reader expects: see `pool`.)
+    // (The lists are made on the buffers of the last file's, with room for this file's sections
+    // or for a file of the size the reader expects, whichever is more: see `pool`.)
     let lists_of = std::mem::take(&mut cx.pool.lists);
-    let room = secs.list.len().max(cx.pool.room / 48 + 8);
+    let room = secs.list.len().max(cx.pool.room / 64 + 8);
     let mut objects: Vec<(u16, &Section<'_>)> = with_room(reuse(lists_of.objects), room);
     // Sub-object sections by object index, in file order for each index (the sort is stable).
     let mut subs: Vec<(u16, (u8, &Section<'_>))> = with_room(reuse(lists_of.subs), room);

@@ -6,7 +6,7 @@
 //! pages of its own, so that a file a little larger than the ones before it, or only of another
 //! size, has its lists put on fresh pages (each a page fault), and allocating and freeing blocks
 //! of tens of kilobytes is not cheap either. The [`Pool`] keeps those buffers, made from the
-//! start with room for a file of the reader's expected size ([`crate::Reader::ROOM`]), as pass
+//! start with room for a file of the reader's expected size ([`crate::Reader::with_room`]), as pass
 //! 1 keeps its own (`sections::Scratch`): room never written costs address space only.
 //!
 //! The model's small blocks are not kept: pools of the entry vectors by capacity and of the
@@ -25,7 +25,9 @@ pub(crate) struct Pool {
     pub objects: Vec<Object>,
     /// The lists `objects::lower_objects` sorts the sections into, emptied.
     pub lists: ObjectLists,
-    /// The size of file the buffers are made for (the file's, or the reader's room if larger).
+    /// The size of file the buffers are made for beyond the file's own needs (the reader's
+    /// room: pass 3 knows the file's sections before it makes its lists, and sizes them for
+    /// those, or for a file of this size if that is more).
     pub room: usize,
     /// The set of listed indices (`info::Lists`), emptied.
     pub listed: super::info::IndexSet,

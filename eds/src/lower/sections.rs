@@ -616,24 +616,26 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
             .hint = Some("CiA 306 files are ASCII; tools that expect it may misread this text".into());
     }
     // Sized so that nothing grows while the lines are read: the corpus has a line every 15
-    // bytes, an entry line every 20 and a section every 120 on average; these bounds hold for
-    // almost every file (one that exceeds them grows once or twice).
+    // bytes, an entry line every 20 and a section every 120 on average, and its densest files a
+    // line every 12.4 bytes and a section every 68; these bounds hold for every file of it (one
+    // that exceeds them grows once or twice). Not much more: room is memory where blocks are
+    // packed densely (`odgen check`'s arena), and these lists are twice the text's size.
     let text = &src.text;
-    let sections = text.len() / 48 + 8;
+    let sections = text.len() / 64 + 8;
     let room = text.len().max(scratch.room_for);
-    let mut heads: Vec<Head<'a>> = with_room(reuse(std::mem::take(&mut scratch.heads)), room / 48 + 8);
+    let mut heads: Vec<Head<'a>> = with_room(reuse(std::mem::take(&mut scratch.heads)), room / 64 + 8);
     let mut by_kind = std::mem::take(&mut scratch.by_kind);
     // (The hash map of sections, for files whose sections are not in order, a third of the
     // corpus, is sized for about as many sections as a file has on average, not at most: its
     // buckets are written all over, so that each page of a map sized for 2.5 times the
     // sections is touched all the same, and a map too small only grows once; the rounding of
     // its size to a power of two leaves room for the denser files.)
-    by_kind.reset(text.len() / 128 + 8, room / 48 + 8);
+    by_kind.reset(text.len() / 128 + 8, room / 64 + 8);
     // Sections of unknown kind, by name in ASCII lower case (names are matched ignoring ASCII
     // case). Real files have few; a file of many must not cost a scan of all the others each,
     // and the names are the file's choice: the standard (keyed) hasher, not `FastMap`'s.
     let mut unknown: std::collections::HashMap<NameKey, usize> = std::collections::HashMap::new();
-    let mut entries: Vec<Kv<'a>> = with_room(reuse(std::mem::take(&mut scratch.entries)), room / 10 + 8);
+    let mut entries: Vec<Kv<'a>> = with_room(reuse(std::mem::take(&mut scratch.entries)), room / 12 + 8);
     // Each section header starts a run of entries: (section, first entry, where the header's
     // name starts). A run ends where the next begins. Until a section is repeated, each run is
     // a section of its own, in order, and is kept in the section's head (the first entry in
@@ -646,7 +648,7 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     // The start of every line (lines end at `\n`, `\r\n` or a lone `\r`, for positions as for
     // the lexer), handed to the source for its diagnostics; its length is the number of the
     // current line.
-    let mut line_starts: Vec<u32> = with_room(std::mem::take(&mut scratch.line_starts), room / 6 + 2);
+    let mut line_starts: Vec<u32> = with_room(std::mem::take(&mut scratch.line_starts), room / 10 + 2);
     line_starts.push(0);
     // Enters the section named `name` (a span; `name_str` its text), whose name starts in
     // column `col` (evaluated only for a section not seen before): shared by the section fast
