@@ -102,14 +102,23 @@ struct Report {
 /// ([`Blocks`]), so that the next file's report is rendered into memory already in use: a file
 /// with many diagnostics has hundreds of kilobytes of report, which a string doubling its size
 /// as it grew made fresh pages and copies of, file after file.
-const BLOCK: usize = 1 << 16;
+///
+/// Small blocks, because reports wait: the threads take the files largest first and the writer
+/// writes them in the order given, so that most reports are held until the end, each with the
+/// unused rest of its last block. With 64 KiB blocks the corpus check held 10 to 16 of them
+/// (0.8 to 1.3 MB, a third of the arena) for 480 KB of report; with 16 KiB, 38 (608 KiB). (16
+/// KiB is one of the arena's size classes, `crate::arena`.)
+const BLOCK: usize = 16 << 10;
+
+/// A block is full once it holds this much: the rest is room for the diagnostic that fills it
+/// (a few hundred bytes as a rule; a larger one grows the block).
+const FULL: usize = BLOCK - (4 << 10);
 
 /// A report shorter than this is copied out of its block ([`Blocks::finish`]).
-const SMALL: usize = 16 << 10;
+const SMALL: usize = 4 << 10;
 
-/// At most this many written blocks are kept to render into again (as many as two files' worth
-/// in flight on each thread; the rest are freed).
-const SPARE: usize = 8;
+/// At most this many written blocks are kept to render into again (the rest are freed).
+const SPARE: usize = 32;
 
 /// The blocks a report is rendered into, taken from the ones written out before.
 struct Blocks<'a> {
@@ -128,15 +137,15 @@ impl<'a> Blocks<'a> {
         b
     }
 
-    /// An empty block: a spare one, or a new one with room for a diagnostic beyond [`BLOCK`].
+    /// An empty block: a spare one, or a new one.
     fn take(&self) -> String {
         let spare = self.spare.lock().unwrap_or_else(|e| e.into_inner()).pop();
-        spare.unwrap_or_else(|| String::with_capacity(BLOCK + 4096))
+        spare.unwrap_or_else(|| String::with_capacity(BLOCK))
     }
 
     /// The block to append the next piece to (a new one once the current one is full).
     fn text(&mut self) -> &mut String {
-        if self.current.len() >= BLOCK {
+        if self.current.len() >= FULL {
             let next = self.take();
             self.done.push(std::mem::replace(&mut self.current, next));
         }
@@ -258,7 +267,7 @@ pub fn run(args: Args) -> u8 {
         let probed = probes.wait()[i].as_ref().map_err(|e| std::io::Error::new(e.kind(), e.to_string()))?;
         let mut blocks = Blocks::new(&spare);
         let mut writes = false;
-        let counts = check_file(probed, &options, format, level, &mut blocks, |w, _| writes = w)?;
+        let counts = check_file(probed, &options, format, level, Room::FirstFile, &mut blocks, |w, _| writes = w)?;
         Ok::<_, std::io::Error>(Report { blocks: blocks.finish(), writes, counts })
     };
 
@@ -280,7 +289,9 @@ pub fn run(args: Args) -> u8 {
                 // (The arena once the files read add up to enough, as with several threads.)
                 bytes += probed.len();
                 crate::arena::open_for(bytes);
-                check_file(&probed, &options, format, level, &mut out, |writes, out| separate(writes, &mut any, out))
+                check_file(&probed, &options, format, level, Room::Large, &mut out, |writes, out| {
+                    separate(writes, &mut any, out)
+                })
             });
             match read {
                 Ok(c) => counts.add_counts(&c),
@@ -349,9 +360,19 @@ pub fn run(args: Args) -> u8 {
 }
 
 thread_local! {
-    /// Each reading thread's [`eds::Reader`]: a file is read into the memory the thread's last
-    /// file used (given back as soon as its report is rendered).
-    static READER: std::cell::RefCell<eds::Reader> = std::cell::RefCell::new(eds::Reader::new());
+    /// Each reading thread's [`eds::Reader`] (made at its first file): a file is read into the
+    /// memory the thread's last file used (given back as soon as its report is rendered).
+    static READER: std::cell::RefCell<Option<eds::Reader>> = const { std::cell::RefCell::new(None) };
+}
+
+/// How large a thread's reader first makes its buffers ([`eds::Reader::with_room`]).
+#[derive(Clone, Copy)]
+enum Room {
+    /// As large as the first file needs: the files come largest first (several threads).
+    FirstFile,
+    /// Room for a large file from the start ([`eds::Reader::ROOM`]): the files come in the
+    /// order given (one thread), and a buffer a later, larger file outgrew would be replaced.
+    Large,
 }
 
 /// Reads a probed file with this thread's `Reader` and renders its part of the output into
@@ -362,10 +383,15 @@ fn check_file<S: Sink>(
     options: &eds::Options,
     format: Format,
     level: Level,
+    room: Room,
     out: &mut S,
     lead: impl FnOnce(bool, &mut S),
 ) -> std::io::Result<Counts> {
     READER.with_borrow_mut(|reader| {
+        let reader = reader.get_or_insert_with(|| match room {
+            Room::FirstFile => eds::Reader::with_room(0),
+            Room::Large => eds::Reader::new(),
+        });
         let parsed = reader.read_probed(probed, options)?;
         lead(writes_anything(&parsed, format, level), out);
         let counts = render(&parsed, probed.path(), format, level, out);
@@ -467,7 +493,7 @@ mod tests {
     #[test]
     fn small_reports_leave_their_block_at_once() {
         let spare: Spare = std::sync::Mutex::new(Vec::new());
-        for len in [0, 1, 100, SMALL - 1, SMALL, BLOCK - 1, BLOCK, 3 * BLOCK + 5] {
+        for len in [0, 1, 100, SMALL - 1, SMALL, FULL - 1, FULL, FULL + 1, BLOCK - 1, BLOCK, 3 * BLOCK + 5] {
             spare.lock().unwrap().clear();
             let mut blocks = Blocks::new(&spare);
             let text: String = (0..len).map(|i| char::from(b'a' + (i % 26) as u8)).collect();
@@ -485,7 +511,8 @@ mod tests {
                 assert!(spare_now[0].is_empty() && spare_now[0].capacity() >= BLOCK);
             } else {
                 assert!(spare_now.is_empty(), "len {len}");
-                assert!(report.iter().all(|b| b.capacity() >= BLOCK), "len {len}");
+                // (Pieces of at most `BLOCK - FULL` bytes never grow a block.)
+                assert!(report.iter().all(|b| b.capacity() == BLOCK), "len {len}");
             }
         }
     }

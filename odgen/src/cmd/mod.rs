@@ -317,13 +317,26 @@ impl Stream {
 
     /// A stream to standard output.
     pub fn stdout() -> Self {
-        Stream { buf: String::with_capacity(Self::BLOCK + 4096) }
+        Stream { buf: String::new() }
+    }
+
+    /// The buffer, made at the first text rather than with the stream, so that it comes from
+    /// the memory the command has by then: for `odgen check`, the arena once it is open
+    /// (`crate::arena`), rather than fresh pages of its own (17 page faults).
+    fn buffer(&mut self) -> &mut String {
+        if self.buf.capacity() == 0 {
+            self.buf.reserve_exact(Self::BLOCK + 4096);
+        }
+        &mut self.buf
     }
 
     /// Appends text. Text that does not fit in the buffer's room is written out with what is
     /// buffered rather than grow the buffer (a larger block would be fresh memory, and a copy).
     pub fn push(&mut self, text: &str) {
         let large = text.len() >= Self::BLOCK;
+        if !large {
+            self.buffer();
+        }
         if (large || self.buf.len() + text.len() > self.buf.capacity()) && !self.buf.is_empty() {
             write_stdout(&self.buf);
             self.buf.clear();
@@ -340,12 +353,12 @@ impl Stream {
     /// first once it reaches the block size, so that it does not grow).
     pub fn room(&mut self) -> &mut String {
         self.write_if_full();
-        &mut self.buf
+        self.buffer()
     }
 
     /// Lets `f` append to the buffer.
     pub fn with(&mut self, f: impl FnOnce(&mut String)) {
-        f(&mut self.buf);
+        f(self.buffer());
         self.write_if_full();
     }
 
