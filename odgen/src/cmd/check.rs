@@ -267,7 +267,7 @@ pub fn run(args: Args) -> u8 {
         let probed = probes.wait()[i].as_ref().map_err(|e| std::io::Error::new(e.kind(), e.to_string()))?;
         let mut blocks = Blocks::new(&spare);
         let mut writes = false;
-        let counts = check_file(probed, &options, format, level, Room::FirstFile, &mut blocks, |w, _| writes = w)?;
+        let counts = check_file(probed, &options, format, level, 0, &mut blocks, |w, _| writes = w)?;
         Ok::<_, std::io::Error>(Report { blocks: blocks.finish(), writes, counts })
     };
 
@@ -282,14 +282,17 @@ pub fn run(args: Args) -> u8 {
         let (files, found) = expand();
         // One thread: each file's report is rendered straight into the output, which writes it
         // as it fills, rather than into blocks handed over (a 200 KB report was four fresh
-        // 64 KiB blocks, then copied in part), in the files' order as it comes.
-        let mut bytes = 0u64;
-        for (path, found) in files.iter().zip(found) {
-            let read = found.probe(path).and_then(|probed| {
-                // (The arena once the files read add up to enough, as with several threads.)
-                bytes += probed.len();
-                crate::arena::open_for(bytes);
-                check_file(&probed, &options, format, level, Room::Large, &mut out, |writes, out| {
+        // 64 KiB blocks, then copied in part), in the files' order. The files are probed first,
+        // as with several threads, so that the arena is opened by the same rule and the
+        // reader is made for the largest of them: it reads them in the order given, and a
+        // buffer a later, larger file outgrew would be replaced.
+        let probed: Vec<_> = files.iter().zip(found).map(|(path, found)| found.probe(path)).collect();
+        let sizes = || probed.iter().map(|p| p.as_ref().map_or(0, |p| p.len()));
+        crate::arena::open_for(sizes().sum());
+        let room = usize::try_from(sizes().max().unwrap_or(0)).unwrap_or(usize::MAX);
+        for (path, probed) in files.iter().zip(probed) {
+            let read = probed.and_then(|probed| {
+                check_file(&probed, &options, format, level, room, &mut out, |writes, out| {
                     separate(writes, &mut any, out)
                 })
             });
@@ -365,33 +368,23 @@ thread_local! {
     static READER: std::cell::RefCell<Option<eds::Reader>> = const { std::cell::RefCell::new(None) };
 }
 
-/// How large a thread's reader first makes its buffers ([`eds::Reader::with_room`]).
-#[derive(Clone, Copy)]
-enum Room {
-    /// As large as the first file needs: the files come largest first (several threads).
-    FirstFile,
-    /// Room for a large file from the start ([`eds::Reader::ROOM`]): the files come in the
-    /// order given (one thread), and a buffer a later, larger file outgrew would be replaced.
-    Large,
-}
-
 /// Reads a probed file with this thread's `Reader` and renders its part of the output into
 /// `out`, after `lead` (told whether the part has anything in it); gives the file's counts.
-/// One thread and several check a file through this alike.
+/// One thread and several check a file through this alike. A thread's reader is made at its
+/// first file with room for files of `room` bytes ([`eds::Reader::with_room`]): several
+/// threads take the files largest first, so that 0 (room for the first file) does; one
+/// thread gives the largest file's size.
 fn check_file<S: Sink>(
     probed: &eds::Probed<'_>,
     options: &eds::Options,
     format: Format,
     level: Level,
-    room: Room,
+    room: usize,
     out: &mut S,
     lead: impl FnOnce(bool, &mut S),
 ) -> std::io::Result<Counts> {
     READER.with_borrow_mut(|reader| {
-        let reader = reader.get_or_insert_with(|| match room {
-            Room::FirstFile => eds::Reader::with_room(0),
-            Room::Large => eds::Reader::new(),
-        });
+        let reader = reader.get_or_insert_with(|| eds::Reader::with_room(room));
         let parsed = reader.read_probed(probed, options)?;
         lead(writes_anything(&parsed, format, level), out);
         let counts = render(&parsed, probed.path(), format, level, out);
