@@ -1,139 +1,71 @@
-//! The allocator of the `odgen` binary: mimalloc, called the way each allocation needs.
+//! The allocator of the `odgen` binary: the arena where it is open (`crate::arena`: `odgen
+//! check` over enough files, on transparent huge pages), the system's allocator (glibc's
+//! `malloc` on Linux) for everything else.
 //!
 //! Reading a file builds a model of many small parts (a `String` per entry name, the entries of
 //! CompactSubObj arrays, diagnostics): about 45,000 allocations per pass over the 61-file
-//! corpus. glibc's malloc and free took about 190 instructions per pair there, a fifth of the
-//! time; mimalloc takes a fraction of that (callgrind: 83.2 -> 70.5 M instructions per corpus
-//! pass). Only the binary is affected: programs that use the `eds` library keep their own
-//! allocator.
-//!
-//! The `mimalloc` crate's allocator sends every request through mimalloc's aligned entry points,
-//! which test the alignment and look for a block that happens to be aligned before they take
-//! the ordinary path. Every block mimalloc hands out is aligned to a machine word, so requests
-//! that ask no more than that (strings, and vectors of bytes, integers and pointers: most of
-//! them) go straight to `mi_malloc`, `mi_zalloc` and `mi_realloc` here; only the others take the
-//! aligned entry points. Corpus pass: 50.9 -> 50.2 M instructions, 1.3 % less time.
-//!
-//! Requests aligned to 16 bytes (the model's entries hold an `i128`, so vectors of them ask
-//! for 16) of at least 16 bytes take the plain entry points too, and the block is checked: in
-//! mimalloc v3 every block of 16 bytes or more is 16-aligned (its size classes from 16 up are
-//! multiples of 16 and its pages start so aligned), but its aligned entry points take that for
-//! granted only up to 1 KiB or for powers of two, and serve the other requests from a block
-//! one alignment larger, of another size class: more pages in use, each a page fault when
-//! fresh. A block that is not aligned (never seen) is given back and the aligned entry point
-//! asked instead.
+//! corpus. Until the arena took them, the binary called mimalloc for them: glibc's `malloc` and
+//! `free` took about 190 instructions per pair there, mimalloc a fraction of that (callgrind:
+//! 83.2 -> 70.5 M instructions per corpus pass). Once the arena served nearly all of a corpus
+//! check (blocks up to 512 KiB; 27 KB of the run's allocations left to the other allocator),
+//! what mimalloc still cost was its setting up, in every run: four `cpuid` instructions (each
+//! an exit to the hypervisor on a virtual machine), a dozen system calls (reading two files of
+//! `/proc` and `/sys`, three mappings and their names) and 37 fresh pages. Dropped for glibc's
+//! allocator (dist binaries, alternating runs from Python, 1,000 of each or 400 where marked):
+//! `odgen check` of a file that does not exist 1.28 -> 0.90 ms; of one 44 KB file (400) 1.70 ->
+//! 1.28 ms; the corpus 4.37 -> 4.31 ms, with `-j1` (400) 7.31 -> 6.78 ms; `odgen dump` of the
+//! 44 KB file (400) 3.71 -> 3.52 ms. The reader alone, in process and without the arena
+//! (`bench-read --jobs 1`), is 6% slower (3.92 -> 4.17 ms a pass): a program that reads many
+//! files in one process chooses its own allocator, and the `eds` library leaves it to it.
 
-use std::alloc::{GlobalAlloc, Layout};
-use std::ffi::c_void;
-
-use libmimalloc_sys as mi;
+use std::alloc::{GlobalAlloc, Layout, System};
 
 use crate::arena;
 
-/// The alignment every mimalloc block has (`MI_INTPTR_SIZE`: its size classes are whole
-/// machine words, and its pages start at least that aligned).
-const WORD: usize = std::mem::size_of::<usize>();
-
-/// mimalloc as the global allocator.
-pub(crate) struct Mimalloc;
-
-// (Declared here rather than through the crate's `extended` feature, which would add a
-// dependency for one function; the symbol is in the library either way.)
-unsafe extern "C" {
-    fn mi_option_set(option: i32, value: std::ffi::c_long);
-}
-
-/// `mi_option_purge_delay` in mimalloc v3's `mi_option_t` (what `libmimalloc-sys` builds).
-const MI_OPTION_PURGE_DELAY: i32 = 15;
-
-/// Tunes the allocator for a short-lived process: before `main` on Linux ([`TUNE_BEFORE_MAIN`]),
-/// and first thing in `main`.
-///
-/// By default mimalloc gives freed pages back to the kernel (`madvise`) 10 ms after they empty;
-/// a thread that then allocates again takes a fresh page fault for each. `odgen check` frees a
-/// file's model and allocates the next file's at once, all within a few milliseconds, so
-/// purging only cost system time (18 `madvise` calls and the faults after them on the corpus);
-/// with it off, the pages stay and are reused. A process's peak memory is unchanged (memory
-/// is given back at exit).
-///
-/// Arenas are mimalloc's least, 32 MiB, rather than its default 1 GiB. Setting up an arena
-/// writes its bitmaps, in proportion to its size: for 1 GiB, 40 fresh pages before the first
-/// allocation (a fifth of `odgen --version`'s faults, and 5% of `odgen check`'s on the corpus).
-/// A process that needs more reserves more arenas, mimalloc doubling their size every eight.
-/// Small arenas also fit an address-space limit (`ulimit -v`): 1 GiB reservations failed there
-/// and were retried smaller on every thread that needed memory, and when two threads did so at
-/// once a large allocation could find no room left and abort the process (`odgen dump` of a
-/// 4 MB file under "10 x the input + 64 MB" aborted in 3 to 5 runs out of 150,
-/// `tests/memory.rs`).
+/// Tunes glibc's allocator for a short process, first thing in `main`: freed memory at the top
+/// of its heap is not given back to the kernel (`M_TRIM_THRESHOLD`, 128 KiB by default: a
+/// file's model freed, then the next one's allocated, shrank the heap and grew it again onto
+/// fresh pages), and the heap grows 1 MiB at a time (`M_TOP_PAD`: fewer `brk` calls; room not
+/// written costs no memory). `odgen check` of one 44 KB file, 400 alternating runs: 1.67 ->
+/// 1.42 ms. Large blocks are still mapped on their own (`M_MMAP_THRESHOLD` is left alone), so
+/// that a large buffer freed is given back at once and memory stays within its bounds on
+/// hostile input (`tests/memory.rs`). Nothing elsewhere than Linux with glibc.
 pub(crate) fn tune() {
-    // SAFETY: mi_option_set only stores the value of a known option (it may be called at any
-    // time; mimalloc reads the option when it next considers purging).
-    unsafe { mi_option_set(MI_OPTION_PURGE_DELAY, -1) }
-    // SAFETY: as above; mimalloc reads this option each time it reserves an arena (the first
-    // time at the first allocation, after this).
-    unsafe { mi_option_set(MI_OPTION_ARENA_RESERVE, ARENA_RESERVE_KIB) }
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: mallopt only sets the allocator's parameters (it may be called at any time).
+    unsafe {
+        libc::mallopt(libc::M_TRIM_THRESHOLD, 256 << 20);
+        libc::mallopt(libc::M_TOP_PAD, 1 << 20);
+    }
 }
 
-/// [`tune`], run by the C runtime before `main` (an ELF constructor): the Rust runtime
-/// allocates before `main` runs (the main thread's name and stack guard), and mimalloc reserves
-/// its first arena at the first allocation, with the options it has then. (`main` calls `tune`
-/// too, for targets without `.init_array`; setting the options again changes nothing.)
-#[cfg(target_os = "linux")]
-#[used]
-#[unsafe(link_section = ".init_array")]
-static TUNE_BEFORE_MAIN: extern "C" fn() = {
-    extern "C" fn before_main() {
-        tune()
-    }
-    before_main
-};
+/// The arena when it serves the request, the system's allocator otherwise.
+pub(crate) struct Allocator;
 
-/// `mi_option_arena_reserve` in mimalloc v3's `mi_option_t`: the address space an arena
-/// reserves, in KiB (1 GiB by default).
-const MI_OPTION_ARENA_RESERVE: i32 = 23;
-
-/// The arena size: mimalloc's least (`MI_ARENA_MIN_SIZE`, 32 MiB on 64-bit targets).
-const ARENA_RESERVE_KIB: std::ffi::c_long = 32 * 1024;
-
-// SAFETY: each method forwards to the mimalloc function with the same contract as the
-// `GlobalAlloc` method (a block of at least `size` bytes, or null on failure; `mi_free` and
-// `mi_realloc*` accept any block from these functions). Blocks from `mi_malloc`, `mi_zalloc` and
-// `mi_realloc` are aligned to `WORD`, so those are only used when the layout asks no more;
-// larger alignments go to the `_aligned` functions, which honour any power of two.
-unsafe impl GlobalAlloc for Mimalloc {
+// SAFETY: a block is the arena's exactly when its address is in the arena (`arena::contains`),
+// and is then given back to it; every other block came from `System` and goes back to it, with
+// the layout it was made with (the caller's contract). `System` honours every alignment; the
+// arena serves only requests aligned to at most `arena::ALIGN`.
+unsafe impl GlobalAlloc for Allocator {
     #[inline]
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if let Some(p) = from_arena(layout) {
-            return p;
-        }
-        // SAFETY: see the impl.
-        unsafe {
-            match Path::of(layout.size(), layout.align()) {
-                Path::Plain => mi::mi_malloc(layout.size()) as *mut u8,
-                Path::Checked => or_aligned(mi::mi_malloc(layout.size()), layout.align(), || {
-                    mi::mi_malloc_aligned(layout.size(), layout.align())
-                }),
-                Path::Aligned => mi::mi_malloc_aligned(layout.size(), layout.align()) as *mut u8,
-            }
+        match from_arena(layout) {
+            Some(p) => p,
+            // SAFETY: the caller's contract (a non-zero size).
+            None => unsafe { System.alloc(layout) },
         }
     }
 
     #[inline]
     unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        if let Some(p) = from_arena(layout) {
-            // SAFETY: a block of at least `layout.size()` bytes (a reused one is not zero).
-            unsafe { p.write_bytes(0, layout.size()) };
-            return p;
-        }
-        // SAFETY: see the impl.
-        unsafe {
-            match Path::of(layout.size(), layout.align()) {
-                Path::Plain => mi::mi_zalloc(layout.size()) as *mut u8,
-                Path::Checked => or_aligned(mi::mi_zalloc(layout.size()), layout.align(), || {
-                    mi::mi_zalloc_aligned(layout.size(), layout.align())
-                }),
-                Path::Aligned => mi::mi_zalloc_aligned(layout.size(), layout.align()) as *mut u8,
+        match from_arena(layout) {
+            Some(p) => {
+                // SAFETY: a block of at least `layout.size()` bytes (a reused one is not zero).
+                unsafe { p.write_bytes(0, layout.size()) };
+                p
             }
+            // SAFETY: the caller's contract (a non-zero size).
+            None => unsafe { System.alloc_zeroed(layout) },
         }
     }
 
@@ -143,15 +75,16 @@ unsafe impl GlobalAlloc for Mimalloc {
             // SAFETY: an arena block made for `layout` (the caller's contract).
             return unsafe { arena::free(ptr, layout.size()) };
         }
-        // SAFETY: `ptr` came from one of the functions above (the caller's contract).
-        unsafe { mi::mi_free(ptr as *mut c_void) }
+        // SAFETY: `ptr` came from `System` with `layout` (the caller's contract).
+        unsafe { System.dealloc(ptr, layout) }
     }
 
     #[inline]
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
         if arena::contains(ptr) {
             // A size of the same class keeps its block; otherwise a new block (the arena's or
-            // mimalloc's), the bytes copied, and the old block given back once that succeeded.
+            // the system's), the bytes copied, and the old block given back once that
+            // succeeded.
             if new_size <= arena::MAX_BLOCK && arena::class(new_size).0 == arena::class(layout.size()).0 {
                 return ptr;
             }
@@ -168,23 +101,9 @@ unsafe impl GlobalAlloc for Mimalloc {
             }
             return new;
         }
-        // SAFETY: see the impl; `ptr` came from one of the functions above with `layout`.
-        // `mi_realloc_aligned` of a block that is not aligned moves it to one that is (the
-        // bytes kept as `mi_realloc` keeps them).
-        unsafe {
-            match Path::of(new_size, layout.align()) {
-                Path::Plain => mi::mi_realloc(ptr as *mut c_void, new_size) as *mut u8,
-                Path::Checked => {
-                    let p = mi::mi_realloc(ptr as *mut c_void, new_size) as *mut u8;
-                    if aligned(p, layout.align()) {
-                        p
-                    } else {
-                        mi::mi_realloc_aligned(p as *mut c_void, new_size, layout.align()) as *mut u8
-                    }
-                }
-                Path::Aligned => mi::mi_realloc_aligned(ptr as *mut c_void, new_size, layout.align()) as *mut u8,
-            }
-        }
+        // SAFETY: `ptr` came from `System` with `layout` (the caller's contract). (A block of
+        // the system's stays the system's when it grows: it is not moved into the arena.)
+        unsafe { System.realloc(ptr, layout, new_size) }
     }
 }
 
@@ -199,105 +118,16 @@ fn from_arena(layout: Layout) -> Option<*mut u8> {
     (!p.is_null()).then_some(p)
 }
 
-/// mimalloc's `MI_MAX_ALIGN_SIZE` on 64-bit targets: blocks of at least this size are aligned
-/// to it.
-const MAX_ALIGN: usize = 16;
-
-/// Which of mimalloc's entry points serves a request.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Path {
-    /// The plain one: every block is aligned to [`WORD`].
-    Plain,
-    /// The plain one, the block checked for alignment (see the module's documentation).
-    Checked,
-    /// The aligned one.
-    Aligned,
-}
-
-impl Path {
-    fn of(size: usize, align: usize) -> Path {
-        if align <= WORD {
-            Path::Plain
-        } else if align <= MAX_ALIGN && size >= MAX_ALIGN {
-            Path::Checked
-        } else {
-            Path::Aligned
-        }
-    }
-}
-
-/// `p` (a new block, or null) when it is null or aligned to `align`; otherwise `p` is freed and
-/// `aligned_alloc`'s block given instead.
-///
-/// # Safety
-/// `p` is null or a block from mimalloc that nothing else refers to.
-#[inline]
-unsafe fn or_aligned(p: *mut c_void, align: usize, aligned_alloc: impl FnOnce() -> *mut c_void) -> *mut u8 {
-    let p = p as *mut u8;
-    if aligned(p, align) {
-        return p;
-    }
-    // SAFETY: `p` is a block from mimalloc that nothing refers to (the caller's contract).
-    unsafe { mi::mi_free(p as *mut c_void) };
-    aligned_alloc() as *mut u8
-}
-
-/// Whether `p` is null (a failure, passed on as such) or aligned to `align`.
-#[inline]
-fn aligned(p: *mut u8, align: usize) -> bool {
-    (p as usize) & (align - 1) == 0
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// mimalloc reserves arenas of 32 MiB and never purges: on Linux from before `main` (this
-    /// test does not call `tune` first there), elsewhere once `tune` has run.
-    #[test]
-    fn tune_sets_the_options() {
-        unsafe extern "C" {
-            fn mi_option_get(option: i32) -> std::ffi::c_long;
-        }
-        if !cfg!(target_os = "linux") {
-            tune();
-        }
-        // SAFETY: mi_option_get reads the value of a known option.
-        let (reserve, purge) =
-            unsafe { (mi_option_get(MI_OPTION_ARENA_RESERVE), mi_option_get(MI_OPTION_PURGE_DELAY)) };
-        assert_eq!((reserve, purge), (32 * 1024, -1));
-    }
-
-    /// The property the checked path counts on: mimalloc's plain blocks of 16 bytes or more
-    /// are 16-aligned, for every size class up to large objects (were it to change, the checked
-    /// path would still be correct, through its fallback, but slower: this says so).
-    #[test]
-    fn plain_blocks_of_sixteen_bytes_or_more_are_sixteen_aligned() {
-        let mut blocks = Vec::new();
-        for size in (16..=4096).chain((4096..=600_000).step_by(1000)) {
-            for _ in 0..3 {
-                // SAFETY: a non-zero size; freed once below.
-                let p = unsafe { mi::mi_malloc(size) } as *mut u8;
-                assert!(!p.is_null());
-                assert!(aligned(p, 16), "size {size}: {p:p}");
-                blocks.push(p);
-            }
-        }
-        for p in blocks {
-            // SAFETY: each came from mi_malloc and is freed once.
-            unsafe { mi::mi_free(p as *mut c_void) }
-        }
-        assert_eq!(Path::of(3840, 16), Path::Checked);
-        assert_eq!(Path::of(8, 16), Path::Aligned);
-        assert_eq!(Path::of(64, 32), Path::Aligned);
-        assert_eq!(Path::of(5, 8), Path::Plain);
-    }
-
     /// Every size and alignment gets a block that is aligned, writable over its whole size, and
-    /// keeps its bytes when it grows and shrinks.
+    /// keeps its bytes when it grows and shrinks (from the system's allocator or the arena,
+    /// whichever serves it when the test runs).
     #[test]
     fn blocks_are_aligned_and_keep_their_bytes() {
-        let a = Mimalloc;
+        let a = Allocator;
         for align in [1usize, 2, 4, 8, 16, 32, 64, 4096] {
             for size in [1usize, 3, 7, 8, 9, 15, 16, 17, 24, 40, 48, 96, 100, 1000, 1056, 3840, 9600, 70_000, 300_000] {
                 let layout = Layout::from_size_align(size, align).expect("layout");

@@ -118,9 +118,10 @@ fn every_command_within_ten_times_the_input() {
 }
 
 /// Under an address-space limit, `odgen dump` (two threads: one serialises the model while the
-/// other writes YAML) of a 4 MB value does not abort now and then: with mimalloc's default
-/// 1 GiB arenas every reservation failed and was retried smaller, hundreds of times, and in 3
-/// to 5 runs out of 150 a large allocation found no room left. Twenty runs in a row (each run
+/// other writes YAML) of a 4 MB value does not abort now and then: when the binary's allocator
+/// was mimalloc, with its default 1 GiB arenas every reservation failed and was retried smaller,
+/// hundreds of times, and in 3 to 5 runs out of 150 a large allocation found no room left.
+/// Kept for any allocator the binary has. Twenty runs in a row (each run
 /// failed with a probability of about 3%, so the old behaviour fails this about half the time).
 #[test]
 fn dump_under_a_limit_never_aborts() {
