@@ -2,7 +2,8 @@
 //!
 //! A run of `odgen check` is a few milliseconds, and every page of memory it touches is a fresh
 //! one: a page fault, about 2.2 us on our VMs, and more work for the kernel at exit (about 2.9
-//! us a page end to end, measured by touching extra pages). With mimalloc alone the corpus
+//! us a page end to end, measured by touching extra pages). With mimalloc alone (the binary's
+//! allocator then) the corpus
 //! check touched about 740 pages of heap on two threads, a third of the run's time. Most of
 //! that memory is in use, not wasted: packing the same blocks tightly (below, on ordinary
 //! pages) saved only 30 of them.
@@ -23,7 +24,7 @@
 //! `eds::Reader::with_room`). Room never written costs nothing on ordinary pages; here it is
 //! arena. Sized for a 256 KiB file, as a reader does for files in any order, and with the
 //! reports rendered into 64 KiB blocks, the corpus filled the 4 MiB the arena then had, and
-//! 0.3 to 1.8 MB went to mimalloc's fresh pages, about 180 page faults.
+//! 0.3 to 1.8 MB went to the other allocator's fresh pages, about 180 page faults.
 //!
 //! The arena serves requests up to [`MAX_BLOCK`] bytes aligned to at most 16, in 56 size
 //! classes (16-byte steps up to 128 bytes, then four a doubling: at most a quarter wasted).
@@ -33,7 +34,8 @@
 //! that made it, and is then that thread's to reuse. Nothing is returned to the system before
 //! the process ends, and blocks of one class are never cut for another: the arena's size bounds
 //! what this keeps. What it cannot serve (larger or more aligned requests, or any once it is
-//! full) the caller takes from mimalloc; a block is the arena's if its address is in it.
+//! full) the caller takes from the system's allocator (`crate::alloc`); a block is the arena's
+//! if its address is in it.
 //!
 //! It is opened by `odgen check` when the files it is given add up to [`WORTH_OPENING`] bytes
 //! or more (a smaller run touches fewer pages than a huge page's zeroing costs), and only where
@@ -179,8 +181,8 @@ fn publish_new() {
 
 /// Whether memory this process advises for transparent huge pages gets them: the system's
 /// setting is `always` or `madvise` (not `never`, and the file exists: the kernel has them),
-/// and the process has not turned them off (`PR_SET_THP_DISABLE`; mimalloc does so when told
-/// `MIMALLOC_ALLOW_THP=0`).
+/// and the process has not turned them off (`PR_SET_THP_DISABLE`, which a parent process's
+/// setting passes on to its children).
 #[cfg(target_os = "linux")]
 fn huge_pages() -> bool {
     // SAFETY: PR_GET_THP_DISABLE takes no pointer; it returns 1 when disabled, -1 on error.
@@ -233,7 +235,7 @@ pub(crate) unsafe fn alloc(size: usize) -> *mut u8 {
     }
     let (i, block) = class(size);
     // (`try_with` cannot fail for this thread-local, which has no destructor; a failure would
-    // only send the request to mimalloc.)
+    // only send the request to the system's allocator.)
     LOCAL
         .try_with(|l| {
             // SAFETY: this thread's own state; nothing here allocates or frees, so it is not
@@ -347,7 +349,7 @@ mod tests {
     }
 
     /// With the arena open, small blocks come from it, are aligned and writable, are reused
-    /// once freed, and mimalloc's blocks are told apart from them.
+    /// once freed, and the system allocator's blocks are told apart from them.
     #[test]
     fn blocks_come_from_the_open_arena_and_are_reused() {
         assert!(open_with(false));
@@ -372,7 +374,7 @@ mod tests {
             free(a, 33);
             free(b, 40);
         }
-        // (Larger than the arena serves: mimalloc's, through the global allocator.)
+        // (Larger than the arena serves: the system's, through the global allocator.)
         let large = vec![0u8; MAX_BLOCK + 1];
         assert!(!contains(large.as_ptr() as *mut u8));
         assert!(!contains(std::ptr::null_mut()));
@@ -448,7 +450,7 @@ mod tests {
         });
     }
 
-    /// A full arena serves nothing more: the caller goes to mimalloc.
+    /// A full arena serves nothing more: the caller goes to the system's allocator.
     #[test]
     fn a_full_arena_gives_null() {
         assert!(open_with(false));
