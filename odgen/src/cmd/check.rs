@@ -309,15 +309,21 @@ pub fn run(args: Args) -> u8 {
             };
             counts.add_counts(&report.counts);
             separate(report.writes, &mut any, &mut out);
-            let mut spare = spare.lock().unwrap_or_else(|e| e.into_inner());
-            for mut block in report.blocks {
-                out.push(&block);
+            let mut blocks = report.blocks;
+            for block in &blocks {
+                out.push(block);
+            }
+            // The written blocks go back to the spare ones once written, under a lock held
+            // only for that: a reader taking a block must not wait while the writer writes
+            // (it did, 0.2 ms and more for each wake-up on our VMs).
+            blocks.retain_mut(|block| {
                 block.clear();
                 // (A report copied out of its block is no block: it is freed.)
-                if spare.len() < SPARE && block.capacity() >= BLOCK {
-                    spare.push(block);
-                }
-            }
+                block.capacity() >= BLOCK
+            });
+            let mut spare = spare.lock().unwrap_or_else(|e| e.into_inner());
+            let room = SPARE.saturating_sub(spare.len());
+            spare.extend(blocks.into_iter().take(room));
         });
     }
     match args.format {

@@ -45,7 +45,9 @@ impl Steer {
         #[cfg(target_os = "linux")]
         if let Some((others, all)) = &self.sets {
             use std::os::unix::thread::JoinHandleExt as _;
-            let id = thread.as_pthread_t();
+            // (std's `RawPthread` is a `u64` on every Linux; the C library's `pthread_t` is an
+            // integer in glibc and a pointer in musl: the same bits either way.)
+            let id = thread.as_pthread_t() as usize as libc::pthread_t;
             linux::set(id, others);
             if !state.steered() {
                 // It ran before it was steered: it let nothing go, so it is let go here.
