@@ -254,12 +254,15 @@ pub fn run(args: Args) -> u8 {
     let jobs = if jobs > 1 && args.files.len() >= jobs { jobs } else { jobs.min(expand().0.len().max(1)) };
     let probes: std::sync::OnceLock<Vec<std::io::Result<eds::Probed<'_>>>> = std::sync::OnceLock::new();
     // The files' memory comes from the arena (`crate::arena`) when they add up to enough for it
-    // to pay; a thread other than this one fills its second huge page before it starts reading.
+    // to pay; this thread has its second huge page filled before any thread reads
+    // (`arena::warm`: the two threads reading fill the first, and then reach the second).
     let find = || {
         let (files, found) = expand();
         let probed = probes.get_or_init(|| files.iter().zip(found).map(|(path, found)| found.probe(path)).collect());
         let sizes = || probed.iter().map(|p| p.as_ref().map_or(0, |p| p.len()));
-        crate::arena::open_for(sizes().sum());
+        if crate::arena::open_for(sizes().sum()) {
+            crate::arena::warm();
+        }
         (files.as_slice(), super::largest_first(sizes()))
     };
     let read = |i: usize, _: &PathBuf| {
@@ -302,7 +305,7 @@ pub fn run(args: Args) -> u8 {
             }
         }
     } else {
-        super::par_each(jobs, find, crate::arena::warm, read, |path, report| {
+        super::par_each(jobs, find, read, |path, report| {
             let report = match report {
                 Ok(r) => r,
                 Err(e) => return cannot_read(path, e, &mut unreadable),

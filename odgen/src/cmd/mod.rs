@@ -51,14 +51,9 @@ pub fn jobs(requested: Option<usize>) -> usize {
 /// is already in use: each new thread's allocations start on fresh pages, each a page fault),
 /// and it hands out what is ready between its own items, so results are written and freed as
 /// the run goes rather than all held to the end.
-///
-/// Each of the other threads runs `ready` once the items are found, before it takes one: work
-/// that only such a thread, idle until then, should do (`odgen check` has it fill the second
-/// huge page of its arena, `crate::arena::warm`).
 pub fn par_each<'a, T: Sync + 'a, R: Send>(
     jobs: usize,
     find: impl FnOnce() -> (&'a [T], Vec<usize>),
-    ready: impl Fn() + Sync,
     f: impl Fn(usize, &T) -> R + Sync,
     mut emit: impl FnMut(&T, R),
 ) {
@@ -115,7 +110,6 @@ pub fn par_each<'a, T: Sync + 'a, R: Send>(
         let run = || {
             steer.release(state);
             taken.wait();
-            ready();
             work();
         };
         // SAFETY: `run` borrows only what this function owns or borrows (`steer`, `state`,
@@ -457,7 +451,6 @@ mod tests {
                     par_each(
                         jobs,
                         || (&items[..], order.clone()),
-                        || {},
                         |at, &i| {
                             assert_eq!(at, i);
                             calls.fetch_add(1, Ordering::Relaxed);
@@ -486,7 +479,6 @@ mod tests {
             par_each(
                 jobs,
                 || (&items[..], order.clone()),
-                || {},
                 |_, &i| started.lock().unwrap().push((std::thread::current().id(), i)),
                 |_, ()| {},
             );
@@ -519,7 +511,6 @@ mod tests {
                     par_each(
                         jobs,
                         || (&items[..], (0..items.len()).collect()),
-                        || {},
                         |_, &i| {
                             // (The calling thread slow enough for the workers to start and
                             // take items, the workers slower still.)
@@ -546,7 +537,6 @@ mod tests {
             for jobs in [1usize, 2, 8] {
                 let calls = std::sync::atomic::AtomicUsize::new(0);
                 let found = std::sync::atomic::AtomicBool::new(false);
-                let readied = std::sync::atomic::AtomicUsize::new(0);
                 let mut emitted = Vec::new();
                 par_each(
                     jobs,
@@ -556,19 +546,15 @@ mod tests {
                         found.store(true, std::sync::atomic::Ordering::Relaxed);
                         (&items[..], (0..n).rev().collect())
                     },
-                    // Each other thread is ready once the items are found, and before it works.
-                    || {
-                        assert!(found.load(std::sync::atomic::Ordering::Relaxed));
-                        readied.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                    },
                     |_, &i| {
+                        // Each thread works once the items are found.
+                        assert!(found.load(std::sync::atomic::Ordering::Relaxed));
                         calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                         i + 10
                     },
                     |&i, r| emitted.push((i, r)),
                 );
                 assert_eq!(calls.into_inner(), n, "n {n} jobs {jobs}");
-                assert_eq!(readied.into_inner(), jobs - 1, "n {n} jobs {jobs}");
                 assert_eq!(emitted, items.iter().map(|&i| (i, i + 10)).collect::<Vec<_>>(), "n {n} jobs {jobs}");
             }
         }
@@ -582,7 +568,7 @@ mod tests {
         for bad in [vec![], vec![0, 1, 2], vec![0; 9], vec![8, 7, 6, 5, 4, 3, 2, 1, 99], (0..10).collect()] {
             for jobs in [1usize, 3] {
                 let mut emitted = Vec::new();
-                par_each(jobs, || (&items[..], bad.clone()), || {}, |_, &i| i + 1, |&i, r| emitted.push((i, r)));
+                par_each(jobs, || (&items[..], bad.clone()), |_, &i| i + 1, |&i, r| emitted.push((i, r)));
                 assert_eq!(emitted, items.iter().map(|&i| (i, i + 1)).collect::<Vec<_>>(), "{bad:?} jobs {jobs}");
             }
         }
@@ -603,7 +589,6 @@ mod tests {
                     par_each(
                         jobs,
                         || (&items[..], if case == "order" { panic!("order") } else { (0..40).collect() }),
-                        || {},
                         |_, &i| {
                             running.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
                             std::thread::sleep(std::time::Duration::from_micros(200));
