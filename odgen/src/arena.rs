@@ -121,10 +121,26 @@ pub(crate) fn contains(p: *mut u8) -> bool {
 }
 
 /// Opens the arena for a run whose files add up to `bytes`, if they are [`WORTH_OPENING`]:
-/// whether it is open. The one rule for both of `odgen check`'s ways (files found up front on
-/// several threads, or counted as they come on one).
+/// whether it is open. The one rule for both of `odgen check`'s ways (one thread or several).
+///
+/// The thread that opens it has the kernel fill its first huge page at once, before any other
+/// thread allocates from it, and is the one that fills the second ([`warm`]): see there why
+/// the thread matters.
 pub(crate) fn open_for(bytes: u64) -> bool {
-    bytes >= WORTH_OPENING && open()
+    if bytes < WORTH_OPENING {
+        return false;
+    }
+    let opened = open();
+    if opened && !OPENED_HERE.replace(true) {
+        let base = BASE.load(Ordering::Acquire);
+        populate(base, HUGE);
+    }
+    opened
+}
+
+thread_local! {
+    /// Whether this thread opened the arena (it fills its huge pages).
+    static OPENED_HERE: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
 }
 
 /// Opens the arena (once; later calls change nothing): whether it is open. It is not when it
@@ -203,9 +219,10 @@ fn thp_setting_allows(setting: Option<&[u8]>) -> bool {
     matches!(chosen, Some(b"always" | b"madvise"))
 }
 
-/// Has the kernel fill the arena's second huge page now, on the calling thread, which is to be
-/// the thread that opened the arena (and fills the first as it allocates), before other threads
-/// allocate: for several threads reading, which fill the first page and then reach the second.
+/// Has the kernel fill the arena's second huge page now, if the calling thread opened the arena
+/// (nothing on any other: see below), for several threads reading, which fill the first page
+/// and then reach the second. `odgen check` has its main thread call this as it starts its
+/// first file, after the other threads have the files (and the first page) to start on.
 ///
 /// The kernel takes a huge page first from the free memory it keeps for the CPU asking, where
 /// the huge pages of the run before, freed as it ended, went (its threads' memory is freed by
@@ -219,15 +236,24 @@ fn thp_setting_allows(setting: Option<&[u8]>) -> bool {
 /// page is then filled when first touched).
 pub(crate) fn warm() {
     let base = BASE.load(Ordering::Acquire);
-    if base == CLOSED || WARMED.swap(true, Ordering::Relaxed) {
+    if base == CLOSED || !OPENED_HERE.get() || WARMED.swap(true, Ordering::Relaxed) {
         return;
     }
+    populate(base + HUGE, HUGE);
+}
+
+/// Has the kernel fill `len` bytes of the arena from `at` now (nothing where it cannot:
+/// `MADV_POPULATE_WRITE` is Linux 5.14 and later, and the pages are then filled when first
+/// touched).
+fn populate(at: usize, len: usize) {
     #[cfg(target_os = "linux")]
     // SAFETY: advice on the arena's own mapping; filling pages changes no byte (fresh pages are
     // zero, and a page in use is left as it is).
     unsafe {
-        libc::madvise((base + HUGE) as *mut libc::c_void, HUGE, libc::MADV_POPULATE_WRITE);
+        libc::madvise(at as *mut libc::c_void, len, libc::MADV_POPULATE_WRITE);
     }
+    #[cfg(not(target_os = "linux"))]
+    let _ = (at, len);
 }
 
 /// A block of at least `size` bytes (1 to [`MAX_BLOCK`]), aligned to [`ALIGN`], or null when
@@ -387,6 +413,19 @@ mod tests {
         assert!(!contains(large.as_ptr() as *mut u8));
         assert!(!contains(std::ptr::null_mut()));
         assert!(!contains(usize::MAX as *mut u8));
+    }
+
+    /// Too few bytes do not open the arena; only the thread that opened it fills its pages
+    /// (`warm` on any other does nothing), and only once.
+    #[test]
+    fn only_the_thread_that_opened_the_arena_fills_its_pages() {
+        assert!(!open_for(WORTH_OPENING - 1));
+        assert!(open_with(false));
+        std::thread::spawn(warm).join().expect("warm");
+        assert!(!WARMED.load(Ordering::Relaxed), "a thread that did not open the arena fills nothing");
+        OPENED_HERE.set(true);
+        warm();
+        assert!(WARMED.load(Ordering::Relaxed));
         warm();
     }
 

@@ -254,18 +254,19 @@ pub fn run(args: Args) -> u8 {
     let jobs = if jobs > 1 && args.files.len() >= jobs { jobs } else { jobs.min(expand().0.len().max(1)) };
     let probes: std::sync::OnceLock<Vec<std::io::Result<eds::Probed<'_>>>> = std::sync::OnceLock::new();
     // The files' memory comes from the arena (`crate::arena`) when they add up to enough for it
-    // to pay; this thread has its second huge page filled before any thread reads
-    // (`arena::warm`: the two threads reading fill the first, and then reach the second).
+    // to pay. This thread opens it (and has its first huge page filled), and has its second
+    // filled as it starts its first file, while the other threads start theirs
+    // (`arena::warm`: the threads fill the first page, and then reach the second).
     let find = || {
         let (files, found) = expand();
         let probed = probes.get_or_init(|| files.iter().zip(found).map(|(path, found)| found.probe(path)).collect());
         let sizes = || probed.iter().map(|p| p.as_ref().map_or(0, |p| p.len()));
-        if crate::arena::open_for(sizes().sum()) {
-            crate::arena::warm();
-        }
+        crate::arena::open_for(sizes().sum());
         (files.as_slice(), super::largest_first(sizes()))
     };
     let read = |i: usize, _: &PathBuf| {
+        // (Once, on the thread that opened the arena; nothing on the others.)
+        crate::arena::warm();
         // (Set by `order`, which runs before any file is read.)
         let probed = probes.wait()[i].as_ref().map_err(|e| std::io::Error::new(e.kind(), e.to_string()))?;
         let mut blocks = Blocks::new(&spare);
