@@ -140,3 +140,26 @@ fn dump_under_a_limit_never_aborts() {
     let _ = std::fs::remove_dir_all(&dir);
     assert_eq!(aborted, 0, "{aborted} of 20 runs of `odgen dump` aborted under a {} MiB limit", limit_kib / 1024);
 }
+
+/// A file too large to be read (over 4 GiB: refused before it is read, as a file that cannot be
+/// opened is) does not size the buffers the other files are read into: `odgen check --jobs 1`
+/// probes every file first and makes its reader for the largest, which would have asked for
+/// gigabytes of room for a 1 KB file. The check of the small file stays within ten times its
+/// size plus 64 MB, and the large one is reported unreadable (exit 2).
+#[test]
+fn a_file_too_large_to_read_does_not_size_the_others_buffers() {
+    let dir = std::env::temp_dir().join(format!("odgen-memory-large-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let huge = dir.join("huge.eds");
+    // (Sparse: no disk space, and never read.)
+    std::fs::File::create(&huge).unwrap().set_len((4 << 30) + 1).unwrap();
+    let small = dir.join("small.eds");
+    std::fs::write(&small, base()).unwrap();
+    let size = std::fs::metadata(&small).unwrap().len();
+    let limit_kib = (10 * size + (64 << 20)) / 1024;
+    for jobs in ["1", "2"] {
+        let status = odgen_within(limit_kib, ["check", "--jobs", jobs, huge.to_str().unwrap(), small.to_str().unwrap()]);
+        assert_eq!(status.code(), Some(2), "--jobs {jobs}: {status:?}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

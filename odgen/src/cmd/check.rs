@@ -120,6 +120,10 @@ const SMALL: usize = 4 << 10;
 /// At most this many written blocks are kept to render into again (the rest are freed).
 const SPARE: usize = 32;
 
+/// The largest file one thread's reader is first made for (four times what `eds::Reader::new`
+/// makes room for; a larger file makes its own buffers as it is read).
+const ROOM_AT_MOST: usize = 4 * eds::Reader::ROOM;
+
 /// The blocks a report is rendered into, taken from the ones written out before.
 struct Blocks<'a> {
     done: Vec<String>,
@@ -289,11 +293,13 @@ pub fn run(args: Args) -> u8 {
         // 64 KiB blocks, then copied in part), in the files' order. The files are probed first,
         // as with several threads, so that the arena is opened by the same rule and the
         // reader is made for the largest of them: it reads them in the order given, and a
-        // buffer a later, larger file outgrew would be replaced.
+        // buffer a later, larger file outgrew would be replaced. (At most for a file of
+        // `ROOM_AT_MOST`: the largest file may be one that cannot be read, and the others'
+        // buffers are not to be made for gigabytes; a larger file makes its own.)
         let probed: Vec<_> = files.iter().zip(found).map(|(path, found)| found.probe(path)).collect();
         let sizes = || probed.iter().map(|p| p.as_ref().map_or(0, |p| p.len()));
         crate::arena::open_for(sizes().sum());
-        let room = usize::try_from(sizes().max().unwrap_or(0)).unwrap_or(usize::MAX);
+        let room = sizes().max().unwrap_or(0).min(ROOM_AT_MOST as u64) as usize;
         for (path, probed) in files.iter().zip(probed) {
             let read = probed.and_then(|probed| {
                 check_file(&probed, &options, format, level, room, &mut out, |writes, out| {
