@@ -29,13 +29,22 @@ use crate::arena;
 /// written costs no memory). `odgen check` of one 44 KB file, 400 alternating runs: 1.67 ->
 /// 1.42 ms. Large blocks are still mapped on their own (`M_MMAP_THRESHOLD` is left alone), so
 /// that a large buffer freed is given back at once and memory stays within its bounds on
-/// hostile input (`tests/memory.rs`). Nothing elsewhere than Linux with glibc.
+/// hostile input (`tests/memory.rs`).
+///
+/// All threads share the one heap (`M_ARENA_MAX` 1): glibc gives each new thread a heap of its
+/// own, reserving 64 MiB of address space for it (128 MiB for a moment, to align it). Under an
+/// address-space limit (`ulimit -v`, "10 x the input + 64 MB" in `tests/memory.rs`) that
+/// reservation, when it succeeded, left too little for the large blocks: `odgen dump` (two
+/// threads) of a 4 MB value aborted in about one run of 30. The threads of `odgen check` take
+/// nearly all their memory from the arena, and `dump`'s two threads allocate little at once:
+/// the shared heap's lock is rarely contended. Nothing elsewhere than Linux with glibc.
 pub(crate) fn tune() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: mallopt only sets the allocator's parameters (it may be called at any time).
     unsafe {
         libc::mallopt(libc::M_TRIM_THRESHOLD, 256 << 20);
         libc::mallopt(libc::M_TOP_PAD, 1 << 20);
+        libc::mallopt(libc::M_ARENA_MAX, 1);
     }
 }
 

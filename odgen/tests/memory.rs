@@ -158,7 +158,8 @@ fn a_file_too_large_to_read_does_not_size_the_others_buffers() {
     let size = std::fs::metadata(&small).unwrap().len();
     let limit_kib = (10 * size + (64 << 20)) / 1024;
     for jobs in ["1", "2"] {
-        let status = odgen_within(limit_kib, ["check", "--jobs", jobs, huge.to_str().unwrap(), small.to_str().unwrap()]);
+        let status =
+            odgen_within(limit_kib, ["check", "--jobs", jobs, huge.to_str().unwrap(), small.to_str().unwrap()]);
         assert_eq!(status.code(), Some(2), "--jobs {jobs}: {status:?}");
     }
     let _ = std::fs::remove_dir_all(&dir);
