@@ -3,10 +3,9 @@
 //! A run of `odgen check` is a few milliseconds, and every page of memory it touches is a fresh
 //! one: a page fault, about 2.2 us on our VMs, and more work for the kernel at exit (about 2.9
 //! us a page end to end, measured by touching extra pages). With mimalloc alone (the binary's
-//! allocator then) the corpus
-//! check touched about 740 pages of heap on two threads, a third of the run's time. Most of
-//! that memory is in use, not wasted: packing the same blocks tightly (below, on ordinary
-//! pages) saved only 30 of them.
+//! allocator then) the corpus check touched about 740 pages of heap on two threads, a third of
+//! the run's time. Most of that memory is in use, not wasted: packing the same blocks tightly
+//! (below, on ordinary pages) saved only 30 of them.
 //!
 //! What is cheaper is fewer, larger pages. The arena is 6 MiB, aligned to 2 MiB and advised
 //! for transparent huge pages (`MADV_HUGEPAGE`): the kernel fills each 2 MiB of it with one
