@@ -31,20 +31,25 @@ use crate::arena;
 /// that a large buffer freed is given back at once and memory stays within its bounds on
 /// hostile input (`tests/memory.rs`).
 ///
-/// All threads share the one heap (`M_ARENA_MAX` 1): glibc gives each new thread a heap of its
-/// own, reserving 64 MiB of address space for it (128 MiB for a moment, to align it). Under an
-/// address-space limit (`ulimit -v`, "10 x the input + 64 MB" in `tests/memory.rs`) that
+/// Under an address-space limit (`ulimit -v`) all threads share the one heap (`M_ARENA_MAX` 1):
+/// glibc gives each new thread a heap of its own, reserving 64 MiB of address space for it (128
+/// MiB for a moment, to align it), and under "10 x the input + 64 MB" (`tests/memory.rs`) that
 /// reservation, when it succeeded, left too little for the large blocks: `odgen dump` (two
-/// threads) of a 4 MB value aborted in about one run of 30. The threads of `odgen check` take
-/// nearly all their memory from the arena, and `dump`'s two threads allocate little at once:
-/// the shared heap's lock is rarely contended. Nothing elsewhere than Linux with glibc.
+/// threads) of a 4 MB value aborted in about one run of 30 (none in 150 with one heap). Without
+/// a limit each thread keeps its own heap: on one, threads that allocate at once wait for each
+/// other (the reader on two threads without the arena, `bench-read --jobs 2`, took 3.9 ms a
+/// corpus pass instead of 2.4). Nothing elsewhere than Linux with glibc.
 pub(crate) fn tune() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    // SAFETY: mallopt only sets the allocator's parameters (it may be called at any time).
+    // SAFETY: mallopt only sets the allocator's parameters (it may be called at any time);
+    // getrlimit writes the limit it is given room for.
     unsafe {
         libc::mallopt(libc::M_TRIM_THRESHOLD, 256 << 20);
         libc::mallopt(libc::M_TOP_PAD, 1 << 20);
-        libc::mallopt(libc::M_ARENA_MAX, 1);
+        let mut limit = libc::rlimit { rlim_cur: libc::RLIM_INFINITY, rlim_max: libc::RLIM_INFINITY };
+        if libc::getrlimit(libc::RLIMIT_AS, &mut limit) == 0 && limit.rlim_cur != libc::RLIM_INFINITY {
+            libc::mallopt(libc::M_ARENA_MAX, 1);
+        }
     }
 }
 
