@@ -40,19 +40,10 @@ pub fn jobs(requested: Option<usize>) -> usize {
 /// read) cost 0.09 ms at the start of `odgen check`, more than a second thread under such a
 /// quota loses; the CPUs the process may run on are asked for with one system call.
 fn cores() -> usize {
-    #[cfg(target_os = "linux")]
-    // SAFETY: cpu_set_t is plain bits, valid when zeroed; sched_getaffinity writes at most the
-    // size given.
-    unsafe {
-        let mut set: libc::cpu_set_t = std::mem::zeroed();
-        if libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut set) == 0 {
-            let n = libc::CPU_COUNT(&set);
-            if (1..=2).contains(&n) {
-                return n as usize;
-            }
-        }
+    match place::allowed_cpus() {
+        Some(n @ 1..=2) => n,
+        _ => std::thread::available_parallelism().map_or(1, usize::from),
     }
-    std::thread::available_parallelism().map_or(1, usize::from)
 }
 
 /// `f(i, &items[i])` for every item on `jobs` threads, each result handed to `emit` on the
@@ -433,23 +424,13 @@ mod tests {
         assert_eq!(jobs(Some(3)), 3);
         assert_eq!(jobs(None), cores());
         let std_count = std::thread::available_parallelism().map_or(1, usize::from);
-        #[cfg(target_os = "linux")]
-        {
-            // SAFETY: as in `cores`.
-            let affinity = unsafe {
-                let mut set: libc::cpu_set_t = std::mem::zeroed();
-                assert_eq!(libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut set), 0);
-                libc::CPU_COUNT(&set) as usize
-            };
-            if affinity <= 2 {
+        match place::allowed_cpus() {
+            Some(affinity @ ..=2) => {
                 assert_eq!(cores(), affinity);
                 assert!(std_count <= affinity);
-            } else {
-                assert_eq!(cores(), std_count);
             }
+            _ => assert_eq!(cores(), std_count),
         }
-        #[cfg(not(target_os = "linux"))]
-        assert_eq!(cores(), std_count);
     }
 
     /// The order is a permutation of the indices, by size from the largest, and items of one

@@ -95,18 +95,36 @@ impl Steered {
     }
 }
 
+/// How many CPUs the calling thread may run on (`None` where the kernel does not say, or
+/// elsewhere than Linux): one system call.
+pub(crate) fn allowed_cpus() -> Option<usize> {
+    #[cfg(target_os = "linux")]
+    {
+        // SAFETY: CPU_COUNT reads a whole cpu_set_t.
+        linux::allowed().map(|set| unsafe { libc::CPU_COUNT(&set) } as usize)
+    }
+    #[cfg(not(target_os = "linux"))]
+    None
+}
+
 #[cfg(target_os = "linux")]
 mod linux {
+    /// The CPUs the calling thread may run on, or `None` when the kernel does not say.
+    pub(super) fn allowed() -> Option<libc::cpu_set_t> {
+        // SAFETY: cpu_set_t is plain bits, valid when zeroed; sched_getaffinity writes at most
+        // the size given.
+        unsafe {
+            let mut set: libc::cpu_set_t = std::mem::zeroed();
+            (libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut set) == 0).then_some(set)
+        }
+    }
+
     /// (The CPUs the process may use but the calling thread's, all it may use), or `None` when
     /// that leaves none or the kernel does not say.
     pub(super) fn others() -> Option<(libc::cpu_set_t, libc::cpu_set_t)> {
-        // SAFETY: cpu_set_t is plain bits, valid when zeroed; sched_getaffinity writes at most
-        // the size given; sched_getcpu takes nothing.
+        let all = allowed()?;
+        // SAFETY: sched_getcpu takes nothing; the CPU_ macros read and write whole cpu_set_ts.
         unsafe {
-            let mut all: libc::cpu_set_t = std::mem::zeroed();
-            if libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut all) != 0 {
-                return None;
-            }
             let here = libc::sched_getcpu();
             let mut others = all;
             if here >= 0 && (here as usize) < libc::CPU_SETSIZE as usize {
@@ -129,12 +147,9 @@ mod linux {
     /// The CPUs the calling thread may run on.
     #[cfg(test)]
     pub(super) fn current() -> Vec<usize> {
-        // SAFETY: as in `others`.
-        unsafe {
-            let mut set: libc::cpu_set_t = std::mem::zeroed();
-            assert_eq!(libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut set), 0);
-            (0..libc::CPU_SETSIZE as usize).filter(|&c| libc::CPU_ISSET(c, &set)).collect()
-        }
+        let set = allowed().expect("the kernel says which CPUs");
+        // SAFETY: CPU_ISSET reads a whole cpu_set_t.
+        (0..libc::CPU_SETSIZE as usize).filter(|&c| unsafe { libc::CPU_ISSET(c, &set) }).collect()
     }
 }
 
