@@ -261,18 +261,22 @@ pub fn run(args: Args) -> u8 {
     // to pay. This thread opens it (and has its first huge page filled), and has its second
     // filled as it starts its first file, while the other threads start theirs
     // (`arena::warm`: the threads fill the first page, and then reach the second).
-    let find = || {
+    // Every file is probed, and the arena opened for their sizes, once, before any is read (by
+    // one thread and by several alike).
+    let probe_all = || {
         let (files, found) = expand();
-        let probed = probes.get_or_init(|| files.iter().zip(found).map(|(path, found)| found.probe(path)).collect());
-        let sizes = || probed.iter().map(|p| p.as_ref().map_or(0, |p| p.len()));
-        crate::arena::open_for(sizes().sum());
-        (files.as_slice(), super::largest_first(sizes()))
+        probes.get_or_init(|| {
+            let probed: Vec<_> = files.iter().zip(found).map(|(path, found)| found.probe(path)).collect();
+            crate::arena::open_for(sizes(&probed).sum());
+            probed
+        })
     };
+    let find = || (expand().0.as_slice(), super::largest_first(sizes(probe_all())));
     let read = |i: usize, _: &PathBuf| {
         // (Once, on the thread that opened the arena; nothing on the others.)
         crate::arena::warm();
-        // (Set by `order`, which runs before any file is read.)
-        let probed = probes.wait()[i].as_ref().map_err(|e| std::io::Error::new(e.kind(), e.to_string()))?;
+        // (Set by `find`, which runs before any file is read.)
+        let probed = probed_file(&probes.wait()[i])?;
         let mut blocks = Blocks::new(&spare);
         let mut writes = false;
         let counts = check_file(probed, &options, format, level, 0, &mut blocks, |w, _| writes = w)?;
@@ -287,7 +291,7 @@ pub fn run(args: Args) -> u8 {
         unreadable.push((name, e.to_string()));
     };
     if jobs == 1 {
-        let (files, found) = expand();
+        let files = &expand().0;
         // One thread: each file's report is rendered straight into the output, which writes it
         // as it fills, rather than into blocks handed over (a 200 KB report was four fresh
         // 64 KiB blocks, then copied in part), in the files' order. The files are probed first,
@@ -296,13 +300,11 @@ pub fn run(args: Args) -> u8 {
         // buffer a later, larger file outgrew would be replaced. (At most for a file of
         // `ROOM_AT_MOST`: the largest file may be one that cannot be read, and the others'
         // buffers are not to be made for gigabytes; a larger file makes its own.)
-        let probed: Vec<_> = files.iter().zip(found).map(|(path, found)| found.probe(path)).collect();
-        let sizes = || probed.iter().map(|p| p.as_ref().map_or(0, |p| p.len()));
-        crate::arena::open_for(sizes().sum());
-        let room = sizes().max().unwrap_or(0).min(ROOM_AT_MOST as u64) as usize;
+        let probed = probe_all();
+        let room = sizes(probed).max().unwrap_or(0).min(ROOM_AT_MOST as u64) as usize;
         for (path, probed) in files.iter().zip(probed) {
-            let read = probed.and_then(|probed| {
-                check_file(&probed, &options, format, level, room, &mut out, |writes, out| {
+            let read = probed_file(probed).and_then(|probed| {
+                check_file(probed, &options, format, level, room, &mut out, |writes, out| {
                     separate(writes, &mut any, out)
                 })
             });
@@ -376,6 +378,17 @@ pub fn run(args: Args) -> u8 {
     } else {
         0
     }
+}
+
+/// The sizes of probed files (0 for one that could not be probed).
+fn sizes<'a>(probed: &'a [std::io::Result<eds::Probed<'_>>]) -> impl ExactSizeIterator<Item = u64> + 'a {
+    probed.iter().map(|p| p.as_ref().map_or(0, |p| p.len()))
+}
+
+/// A probed file, or why it could not be probed (the error repeated: an `io::Error` is not
+/// `Clone`, and the probes are shared by the threads).
+fn probed_file<'a, 'p>(probed: &'a std::io::Result<eds::Probed<'p>>) -> std::io::Result<&'a eds::Probed<'p>> {
+    probed.as_ref().map_err(|e| std::io::Error::new(e.kind(), e.to_string()))
 }
 
 thread_local! {
