@@ -32,6 +32,24 @@ cargo clippy --workspace --all-targets --locked -- -D warnings
 step "cargo test (workspace, all targets)"
 cargo test --workspace --all-targets --locked --no-fail-fast
 
+# `--all-targets` leaves the doc tests out: the examples in the docs, the crates' READMEs among
+# them (each published crate's README is its front page).
+step "doc tests (workspace)"
+cargo test --workspace --doc --locked --no-fail-fast
+
+# The crates published on crates.io, in dependency order (drive, generated, devices, odgen,
+# xtask and the examples are not published). Their docs build without a warning (docs.rs
+# builds od-runtime with all features), and each one packages and builds from its .crate
+# alone: `cargo package` of several packages resolves the workspace crates they depend on from
+# the .crate files it has just made (a local registry in target/package), as crates.io will.
+# The packages hold the sources, README and license files only: "ignoring test/benchmark ..."
+# is cargo saying so. --allow-dirty: a local run checks the working tree as it is.
+published=(-p od-sidecar -p od-runtime -p canopen-eds -p od-codegen -p od-macros)
+step "docs of the published crates (warnings denied)"
+RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --all-features --locked "${published[@]}"
+step "cargo package (the published crates, each built from its .crate)"
+cargo package --locked --allow-dirty "${published[@]}"
+
 step "binaries for the end-to-end tests"
 cargo build --workspace --bins --locked
 # Where cargo put them: $CARGO_TARGET_DIR when set (relative to the root, as cargo reads it).

@@ -4,7 +4,9 @@
 //! measures bytes per second for: the lexer alone (`lex`), decoding plus lexing (`decode+lex`),
 //! and the whole reader with validation (`parse`, lenient and strict).
 //!
-//! `cargo bench -p eds --bench lex`
+//! `cargo bench -p canopen-eds --bench lex`
+
+extern crate canopen_eds as eds;
 
 use std::path::{Path, PathBuf};
 

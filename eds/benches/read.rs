@@ -2,8 +2,10 @@
 //!
 //! The corpus is the directory named by `EDS_CORPUS_DIR` (relative paths are taken from the
 //! repository root), default `../shared/eds-corpus`; without it the bench falls back to the
-//! project's own `devices/*.eds`. Run with `cargo bench -p eds --bench read`.
+//! project's own `devices/*.eds`. Run with `cargo bench -p canopen-eds --bench read`.
 //! `scripts/bench-read.sh` compares the same work against python-canopen.
+
+extern crate canopen_eds as eds;
 
 use std::path::{Path, PathBuf};
 

@@ -1,8 +1,9 @@
-//! `eds`: read, validate and write CANopen device descriptions (CiA 306 EDS and DCF files).
+#![doc = include_str!("../README.md")]
+//! # Pipeline
 //!
-//! Pipeline: bytes → [`source::SourceFile`] (UTF-8, Windows-1252 fallback) → [`lex`] →
+//! Bytes → [`source::SourceFile`] (UTF-8, Windows-1252 fallback) → [`lex`] →
 //! [`ast::Document`] (lossless: every byte, comment, key spelling and order kept) → [`lower`] →
-//! [`model::Model`] (typed) + [`diag::Diagnostic`]s → [`write`] (canonical EDS/DCF text).
+//! [`model::Model`] (typed) + [`diag::Diagnostic`]s → [`write`](mod@write) (canonical EDS/DCF text).
 #![deny(missing_docs)]
 
 pub mod ast;

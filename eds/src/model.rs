@@ -814,7 +814,7 @@ impl From<Entry> for EntryRepr {
 /// Inserting out of order moves the later values up, as `Vec::insert` does.
 ///
 /// ```
-/// use eds::model::*;
+/// use canopen_eds::model::*;
 /// let entry = |sub: u8| Entry { sub: SubIndex(sub), name: format!("Entry {sub}").into(),
 ///     data_type: DataType::Unsigned8, access: Access::Ro, pdo_mapping: false, default: None,
 ///     extras: None, at: SourceRef::default() };

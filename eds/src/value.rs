@@ -143,10 +143,10 @@ pub struct ParsedInt {
 /// Reads `text` as a value of type `ty`. Never panics.
 ///
 /// ```
-/// use eds::model::{DataType, Radix, Value};
-/// let v = eds::value::parse_value(" $NodeID + 0x200 ", DataType::Unsigned32).unwrap();
+/// use canopen_eds::model::{DataType, Radix, Value};
+/// let v = canopen_eds::value::parse_value(" $NodeID + 0x200 ", DataType::Unsigned32).unwrap();
 /// assert_eq!(v.value, Some(Value::NodeIdPlus { offset: 0x200, radix: Radix::Hex }));
-/// let v = eds::value::parse_value("0xFFFF", DataType::Integer16).unwrap();
+/// let v = canopen_eds::value::parse_value("0xFFFF", DataType::Integer16).unwrap();
 /// assert_eq!(v.value.unwrap().as_int(), Some(-1));
 /// ```
 pub fn parse_value(text: &str, ty: DataType) -> Result<ParsedValue, ValueError> {
@@ -542,10 +542,10 @@ pub fn check_range(value: &Value, ty: DataType) -> Result<(), String> {
 /// reads back exactly; bytes as upper-case hex pairs without separators.
 ///
 /// ```
-/// use eds::model::{DataType, Value, Radix};
-/// assert_eq!(eds::value::format_value(&Value::hex(0x180), DataType::Unsigned32), "0x180");
-/// assert_eq!(eds::value::format_value(&Value::NodeIdPlus { offset: 0x200, radix: Radix::Hex }, DataType::Unsigned32), "$NODEID+0x200");
-/// assert_eq!(eds::value::format_value(&Value::hex(-1), DataType::Integer16), "0xFFFF");
+/// use canopen_eds::model::{DataType, Value, Radix};
+/// assert_eq!(canopen_eds::value::format_value(&Value::hex(0x180), DataType::Unsigned32), "0x180");
+/// assert_eq!(canopen_eds::value::format_value(&Value::NodeIdPlus { offset: 0x200, radix: Radix::Hex }, DataType::Unsigned32), "$NODEID+0x200");
+/// assert_eq!(canopen_eds::value::format_value(&Value::hex(-1), DataType::Integer16), "0xFFFF");
 /// ```
 pub fn format_value(value: &Value, ty: DataType) -> String {
     match value {

@@ -702,8 +702,8 @@ pub struct ConfigureError {
 /// reported, each with the entry's location in the description.
 ///
 /// ```
-/// use eds::model::*;
-/// use eds::write::configure;
+/// use canopen_eds::model::*;
+/// use canopen_eds::write::configure;
 /// # let mut model = Model::default();
 /// # let mut subs = SubMap::new();
 /// # subs.insert(SubIndex(0), Entry { sub: SubIndex(0), name: "Modes of operation".into(),

@@ -3,6 +3,8 @@
 //! diagnostics are snapshot (one line each, so a change in what the reader says about a real
 //! file shows up in review).
 
+extern crate canopen_eds as eds;
+
 use std::path::PathBuf;
 
 use eds::{Options, Severity};

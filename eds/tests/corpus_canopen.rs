@@ -6,6 +6,8 @@
 //! Needs `$EDS_CORPUS_DIR` and a Python with `canopen` (`$EDS_PYTHON`, else the repository's
 //! `.venv/bin/python` that `scripts/venv.sh` makes); skipped, saying so, without them.
 
+extern crate canopen_eds as eds;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

@@ -2,6 +2,8 @@
 //! `fixtures/base.eds` with one mistake): the code is reported, with the severity the code table
 //! promises in each mode, and the rendered output is snapshot.
 
+extern crate canopen_eds as eds;
+
 use std::path::{Path, PathBuf};
 
 use eds::{Options, Severity, codes};

@@ -1,6 +1,8 @@
 //! One fixture per feature (`fixtures/features/`): the typed model is snapshot as YAML, and the
 //! values that matter are asserted directly.
 
+extern crate canopen_eds as eds;
+
 use std::path::Path;
 
 use eds::model::{Access, Category, DataType, FileKind, ObjectType, Radix, Value};

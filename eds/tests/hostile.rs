@@ -2,6 +2,8 @@
 //! found each of these). The rules tested here hold for every input of the kind, so the inputs
 //! are built in the tests.
 
+extern crate canopen_eds as eds;
+
 use std::path::{Path, PathBuf};
 
 use eds::{Options, Severity};

@@ -1,6 +1,8 @@
 //! `Document::write_lossless` gives back the input byte for byte, whatever the input (but
 //! invalid UTF-16, reported as error E0011); and no input makes the reader panic.
 
+extern crate canopen_eds as eds;
+
 use std::path::Path;
 
 use eds::Options;

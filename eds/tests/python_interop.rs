@@ -8,6 +8,8 @@
 //! Without the venv (`.venv/bin/python`) the test is skipped with a message, unless `CI` is set:
 //! then it builds the venv with `scripts/venv.sh`, and fails if it cannot.
 
+extern crate canopen_eds as eds;
+
 mod write_common;
 
 use std::path::{Path, PathBuf};

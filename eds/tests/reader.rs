@@ -3,6 +3,8 @@
 //! large, duplicate sections (whose entries are regrouped), other encodings (decoded into new
 //! text), and the real corpus when it is at hand.
 
+extern crate canopen_eds as eds;
+
 use std::path::{Path, PathBuf};
 
 use eds::{Options, Parsed};

@@ -5,6 +5,8 @@
 //! The corpus is read in place from `EDS_CORPUS_DIR` (relative to the repository root), default
 //! `../shared/eds-corpus`; without it that part is skipped with a message.
 
+extern crate canopen_eds as eds;
+
 mod write_common;
 
 use std::path::{Path, PathBuf};

@@ -1,5 +1,7 @@
 //! The canonical text the writer produces, feature by feature, and `configure`.
 
+extern crate canopen_eds as eds;
+
 mod write_common;
 
 use eds::model::*;

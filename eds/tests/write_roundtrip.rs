@@ -7,6 +7,8 @@
 //! comments, commissioning, objects of every kind with every basic type, values in every radix
 //! and `$NODEID` form, limits, flags, unknown keys and sections.
 
+extern crate canopen_eds as eds;
+
 mod write_common;
 
 use eds::model::*;

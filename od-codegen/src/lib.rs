@@ -1,11 +1,4 @@
-//! `od-codegen`: typed Rust from CANopen device descriptions.
-//!
-//! The generator takes a validated [`eds::Model`] (what an EDS or DCF means) and writes one Rust
-//! module per device: a storage struct with a typed getter and setter per entry, a sorted
-//! metadata table, an implementation of [`od_runtime::od::ObjectDictionary`] for the bus side,
-//! typed PDO layouts, the device description itself as a string, and (given the device's sidecar)
-//! exact unit conversions.
-//!
+#![doc = include_str!("../README.md")]
 //! # Three ways in
 //!
 //! * **build.rs**, in the style of `prost-build`:

@@ -1,11 +1,4 @@
-//! `od-macros`: CANopen object dictionaries for Rust device stacks, declared in code or read
-//! from an EDS at compile time.
-//!
-//! Both macros expand to the module [`od_codegen`](https://docs.rs/od-codegen) generates for an
-//! EDS file (a typed `Dictionary` implementing `od_runtime::od::ObjectDictionary`, PDO layouts,
-//! index constants, the description as `EDS`). The generated code names the runtime as
-//! `::od_runtime`, so the crate using the macros depends on `od-runtime`.
-//!
+#![doc = include_str!("../README.md")]
 //! # `object_dictionary!`: a dictionary declared inline
 //!
 //! ```
@@ -86,10 +79,10 @@
 //!   and sub-indices out of range, duplicates, values that do not fit their type or limits,
 //!   PDO mappings that name undeclared or variable-length entries;
 //! * the EDS reader's validation: the dictionary is written as its EDS and read back by
-//!   [`eds::parse`](https://docs.rs/eds), lenient or strict; every error it reports about that
-//!   text is mapped back to the declaration of the object, entry and key it concerns (so a
-//!   missing mandatory object under `strict;` fails the build, and the dictionary compiles
-//!   exactly when its EDS passes `odgen check`);
+//!   [`canopen_eds::parse`](https://docs.rs/canopen-eds), lenient or strict; every error it
+//!   reports about that text is mapped back to the declaration of the object, entry and key it
+//!   concerns (so a missing mandatory object under `strict;` fails the build, and the
+//!   dictionary compiles exactly when its EDS passes `odgen check`);
 //! * the generator's checks (default PDO mappings longer than 64 bits, entries mapped against
 //!   their access direction or without `pdo`), where its warnings count as errors too.
 //!

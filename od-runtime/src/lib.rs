@@ -1,5 +1,5 @@
-//! `od-runtime`: a `#![no_std]`, allocation-free CANopen device core that generated object
-//! dictionaries plug into.
+#![doc = include_str!("../README.md")]
+//! # Services
 //!
 //! A [`Device`] wraps one [`ObjectDictionary`](od::ObjectDictionary) (generated from an EDS by
 //! `od-codegen`, or written by hand) and implements the CiA 301 slave services on top of it:
@@ -15,20 +15,9 @@
 //! | store / restore parameters | 1010h, 1011h | [`storage`] |
 //! | CiA 402 drive state machine | 6040h, 6041h, 605Ah, 6060h, 6061h | [`cia402`] |
 //!
-//! Time is an argument ([`Micros`]), never read from a clock, so the same code runs on a
-//! microcontroller timer and in deterministic tests:
-//!
-//! ```text
-//! loop {
-//!     while let Some(frame) = can.receive() { device.on_frame(&frame, now_us()); }
-//!     device.poll(now_us(), |frame| can.send(frame));
-//! }
-//! ```
-//!
-//! Everything from the bus is treated as hostile: malformed frames are ignored or answered with
-//! an SDO abort, never a panic; there is no allocation and every loop is bounded by a table
-//! size. The application plugs in through [`App`] (a veto on writes and a stream of [`Event`]s)
-//! and [`Storage`] (persisting the records that 1010h saves).
+//! Time is an argument ([`Micros`]). The application plugs in through [`App`] (a veto on
+//! writes and a stream of [`Event`]s) and [`Storage`] (persisting the records that 1010h
+//! saves).
 #![no_std]
 #![deny(missing_docs)]
 

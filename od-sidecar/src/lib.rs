@@ -1,4 +1,5 @@
-//! The device sidecar: what an EDS cannot say about a drive.
+#![doc = include_str!("../README.md")]
+//! # The schema
 //!
 //! The schema is an input of the code generator (`od-codegen` re-exports it as
 //! `od_codegen::sidecar`), kept in a crate of its own so that a user of the generator does not
