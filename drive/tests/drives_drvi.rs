@@ -718,6 +718,28 @@ fn a_move_to_10_mm_turns_the_motor_as_the_screw_and_the_gear_say() {
     }
 }
 
+/// The machine's positions are the motor's (0.01°, the power-on unit): an actuator shows them
+/// through the screw. The `drvi-actuator` preset's proximity (PROXY INPUT, 2002h bit 3) lies
+/// at 200°..250° of the motor: 20.00..25.00 mm on a 36 mm screw (6092h = 3600/1), half that
+/// behind a 2:1 gear.
+#[test]
+fn the_machine_shows_through_the_screw_and_the_gear() {
+    for (gear, low, high) in [((1, 1), 2_000, 2_500), ((2, 1), 1_000, 1_250)] {
+        let mut m = master();
+        home(&mut m, 37, 0);
+        m.write_u8(ID, 0x2014, 0, 7).unwrap();
+        m.write_u32(ID, 0x6092, 1, 3_600).unwrap();
+        m.write_u32(ID, 0x6091, 1, gear.0).unwrap();
+        m.write_u32(ID, 0x6091, 2, gear.1).unwrap();
+        profile(&mut m, 1_000, 100);
+        let proxy = |m: &mut Master| m.read_u32(ID, 0x2002, 0).unwrap() & 0b1000 != 0;
+        for (target, on) in [(low - 10, false), (low + 10, true), (high - 10, true), (high + 10, false)] {
+            move_to(&mut m, target, false);
+            assert_eq!(proxy(&mut m), on, "6091h = {}/{}: at {target}", gear.0, gear.1);
+        }
+    }
+}
+
 /// 2001h and 6092h divide: a 0 in either sub is refused (0609 0030h), the value kept. 6091h
 /// may be 0 (its printed default 0/0 is 1:1). The generated units report a 0 held in 6092h
 /// (a dictionary written without the drive) as `ZeroFactor`, never a division by zero.
