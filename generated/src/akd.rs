@@ -30418,6 +30418,8 @@ Denotation=MOTOR.BRAKEIMM
             pub fn internal_factor(&self, d: Dimension) -> Option<Ratio> {
                 self.internal.get(d.slot()).copied().flatten()
             }
+        }
+        impl Units {
             /// `raw × factor`, exact.
             #[inline]
             pub fn to_physical(
@@ -30526,6 +30528,8 @@ Denotation=MOTOR.BRAKEIMM
                     unit: *unit,
                 })
             }
+        }
+        impl Units {
             /// `0x608F` EncoderResolution: `encoder_increments / motor_revolutions` (subs 1 and 2), reduced; a zero term is an error.
             ///
             /// encoder\_resolution = encoder\_increments / motor\_revolutions \[inc per motor revolution\]; position\_inc = position\_user \* encoder\_resolution \* gear\_ratio / feed\_constant

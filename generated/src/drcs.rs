@@ -15050,6 +15050,8 @@ PDOMapping=0
             pub fn internal_factor(&self, d: Dimension) -> Option<Ratio> {
                 self.internal.get(d.slot()).copied().flatten()
             }
+        }
+        impl Units {
             /// `raw × factor`, exact.
             #[inline]
             pub fn to_physical(
@@ -15158,6 +15160,8 @@ PDOMapping=0
                     unit: *unit,
                 })
             }
+        }
+        impl Units {
             /// `0x2001` FeedConverter: `numerator / denominator` (subs 1 and 2), reduced; a zero term is an error.
             ///
             /// unit\_new = unit\_default \* numerator / denominator; as values: value\_new = value\_default \* numerator / denominator

@@ -15526,6 +15526,8 @@ PDOMapping=0
             pub fn internal_factor(&self, d: Dimension) -> Option<Ratio> {
                 self.internal.get(d.slot()).copied().flatten()
             }
+        }
+        impl Units {
             /// `raw × factor`, exact.
             #[inline]
             pub fn to_physical(
@@ -15634,6 +15636,8 @@ PDOMapping=0
                     unit: *unit,
                 })
             }
+        }
+        impl Units {
             /// `0x2001` FeedConverter: `numerator / denominator` (subs 1 and 2), reduced; a zero term is an error.
             ///
             /// value\_new = value\_default \* numerator / denominator (the manual writes: New unit = default unit \* Numerator / Denominator); default 1/1 leaves Table 6.2 units unchanged

@@ -189,7 +189,9 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sc: &Sidecar, sink: &mut Si
     }
     let enums = enum_items(&units, &dims, &systems, &selection);
     let values = value_items();
-    let conversions = units_struct(dims.len(), &factors, &ratios.fns, &accessors);
+    let units_type = units_struct(dims.len(), &factors);
+    let conversions = conversion_methods();
+    let own = device_methods(&ratios.fns, &accessors);
     let rt = crate::support::rt();
     quote! {
         /// Physical units of the device's values, from its sidecar (see the od-codegen `units`
@@ -199,7 +201,9 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sc: &Sidecar, sink: &mut Si
             pub use #rt::Ratio;
             #enums
             #values
+            #units_type
             #conversions
+            #own
             #bus
         }
     }
@@ -432,40 +436,52 @@ fn dimension_factor(
                 }
             }
             // Shaft revolutions = (physical value in the feed's unit) × shaft revolutions / feed.
-            ScalingKind::FeedConstant => {
-                let feed_scale = match so.feed_unit {
-                    Some(fu) => {
-                        if length_of(spec.unit) != Some(fu.unit) {
-                            cx.sink.general(
-                                Severity::Error,
-                                diag::UNITS,
-                                format!(
-                                    "unit system `{}` scales {d:?} ({}) by a feed counted in {}: the lengths differ",
-                                    system.name,
-                                    unit_symbol(spec.unit),
-                                    unit_symbol(fu.unit)
-                                ),
-                            );
-                            cx.ok = false;
-                        }
-                        fu.scale
-                    }
-                    None => crate::sidecar::Ratio::ONE,
-                };
-                // (spec.scale / feed_scale): the system's fixed point in feed counts.
-                let n = i128::from(spec.scale.num) * i128::from(feed_scale.den);
-                let dn = i128::from(spec.scale.den) * i128::from(feed_scale.num);
-                if n != dn {
-                    let (n, dn) = (lit::int(n), lit::int(dn));
-                    steps.push(times("g", quote!(Ratio::new(#n, #dn).ok_or(UnitError::Overflow)?)));
-                }
-                steps.push(times("g", quote!(Self::#f(od)?.recip().ok_or(UnitError::Overflow)?)));
-            }
+            ScalingKind::FeedConstant => steps.extend(feed_constant_steps(cx, system, d, spec, so)),
             ScalingKind::ActuatorType => {}
             _ => steps.push(times("g", quote!(Self::#f(od)?))),
         }
     }
     (steps, internal)
+}
+
+/// The feed constant's steps of `g`: the dimension's fixed point expressed in the feed's unit
+/// (`scale / feed_unit`, checked to measure the same length), then `× shaft revolutions / feed`.
+fn feed_constant_steps(
+    cx: &mut Ctx<'_, '_>,
+    system: &UnitSystem,
+    d: Dimension,
+    spec: &UnitSpec,
+    so: &ScalingObject,
+) -> Vec<TokenStream> {
+    let feed_scale = match so.feed_unit {
+        Some(fu) => {
+            if length_of(spec.unit) != Some(fu.unit) {
+                cx.sink.general(
+                    Severity::Error,
+                    diag::UNITS,
+                    format!(
+                        "unit system `{}` scales {d:?} ({}) by a feed counted in {}: the lengths differ",
+                        system.name,
+                        unit_symbol(spec.unit),
+                        unit_symbol(fu.unit)
+                    ),
+                );
+                cx.ok = false;
+            }
+            fu.scale
+        }
+        None => crate::sidecar::Ratio::ONE,
+    };
+    let mut steps = Vec::new();
+    let n = i128::from(spec.scale.num) * i128::from(feed_scale.den);
+    let dn = i128::from(spec.scale.den) * i128::from(feed_scale.num);
+    if n != dn {
+        let (n, dn) = (lit::int(n), lit::int(dn));
+        steps.push(times("g", quote!(Ratio::new(#n, #dn).ok_or(UnitError::Overflow)?)));
+    }
+    let f = kind_fn(ScalingKind::FeedConstant);
+    steps.push(times("g", quote!(Self::#f(od)?.recip().ok_or(UnitError::Overflow)?)));
+    steps
 }
 
 /// One arm of `Units::with_system` per system: every dimension's prepared factor and unit,
@@ -752,14 +768,9 @@ fn value_items() -> TokenStream {
     }
 }
 
-/// `Units`: the conversions of one configured device, built per system by `system_arms`,
-/// with the scaling objects' ratio functions and the typed entry accessors.
-fn units_struct(
-    n_dims: usize,
-    system_arms: &[TokenStream],
-    ratio_fns: &[TokenStream],
-    accessors: &[TokenStream],
-) -> TokenStream {
+/// `Units`: the conversions of one configured device, built per system by `system_arms`, and
+/// what it says about each dimension (unit, factor, internal factor).
+fn units_struct(n_dims: usize, system_arms: &[TokenStream]) -> TokenStream {
     let rt = crate::support::rt();
     let n_dims = Literal::usize_unsuffixed(n_dims);
     quote! {
@@ -810,7 +821,16 @@ fn units_struct(
             pub fn internal_factor(&self, d: Dimension) -> Option<Ratio> {
                 self.internal.get(d.slot()).copied().flatten()
             }
+        }
+    }
+}
 
+/// The conversions of `Units`: raw to physical and back, raw to internal and back, internal to
+/// physical. The same for every device.
+fn conversion_methods() -> TokenStream {
+    let rt = crate::support::rt();
+    quote! {
+        impl Units {
             /// `raw × factor`, exact.
             #[inline]
             pub fn to_physical(&self, d: Dimension, raw: i64) -> Result<Quantity, UnitError> {
@@ -874,7 +894,15 @@ fn units_struct(
                 };
                 Ok(Quantity { value: raw.checked_mul(f.factor()).ok_or(UnitError::Overflow)?.reduced(), unit: *unit })
             }
+        }
+    }
+}
 
+/// The device's own methods of `Units`: one ratio function per scaling object and a typed
+/// getter and setter per dimensioned entry.
+fn device_methods(ratio_fns: &[TokenStream], accessors: &[TokenStream]) -> TokenStream {
+    quote! {
+        impl Units {
             #(#ratio_fns)*
 
             #(#accessors)*
