@@ -4,7 +4,7 @@
 //! | manual | behaviour | here |
 //! |---|---|---|
 //! | Table 6.17 | modes 1, 3, 4, 6, -1 (jog) | [`Vendor::supports_mode`] |
-//! | Table 6.2, 6.3.6.10 | units: 2014h = 0 "only motor" 0.01°, 0.01 rpm, rpm/s; otherwise 0.01 mm, 0.01 mm/s, mm/s²; mA, mA/s | [`Vendor::configure`] sets the axis' unit relations; switching 2014h switches them |
+//! | Table 6.2, 6.3.6.10 | units: 2014h = 0 "only motor" 0.01°, 0.01 rpm, rpm/s; otherwise 0.01 mm, 0.01 mm/s, mm/s²; mA, mA/s | [`Vendor::scale`] turns them into the axis' counts; switching 2014h switches them |
 //! | 6.3.6.1 | feed converter 2001h: new unit = default × num / den for positions, speeds, accelerations, on SDO and PDOs alike; 0 refused | [`Vendor::scale`] |
 //! | 6.3.4.22, 6.3.4.23, 7.5.1 | an actuator (2014h ≠ 0) turns the motor through the screw pitch 6092h (feed / shaft revolutions, × 100: 100/1 = 1 mm per turn) and the gear 6091h (motor / shaft revolutions; the default 0/0 is 1:1): positions, velocities, accelerations, targets, actual values, limits; a change shows in the actual values at once; 0 in 6092h refused | [`actuator_scale`] |
 //! | 4.1.2, 6.4 | profile position: bit 4 starts, bit 6 relative to the *actual* position; the target cannot change during a movement (refused, warning "command refused"); homing is mandatory first (refused, warning "homing missing") | [`Vendor::before_command`] |
@@ -27,7 +27,9 @@
 //!   in that unit (the 6064h unit at power-on, 2014h = 0): an actuator shows them through
 //!   6092h and 6091h ([`actuator_scale`]), so a change of the screw pitch moves nothing, it
 //!   changes what 6064h reads. The gear ratio applies to the actuator configuration only
-//!   (7.5.1 names it with the screw pitch); only motor counts motor degrees.
+//!   (7.5.1 names it with the screw pitch); only motor counts motor degrees. With more than
+//!   360 mm of travel a motor turn (7.5.1 allows 2000), a count is more than 0.01 mm: targets
+//!   go to the nearest count, and 6064h moves in steps of more than one.
 //! * the machine: the DRVI starts as a bare motor turning freely ([`app`], the `free` machine
 //!   of [`super::machine`]), as its default 2014h = 0 ("only motor", 6.3.6.10) says; a
 //!   Camozzi actuator with the PROXY INPUT proximity and end stops is the `drvi-actuator`
