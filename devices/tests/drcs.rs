@@ -508,7 +508,12 @@ fn sidecar_units_chapter_4() {
     for d in [Dimension::Position, Dimension::Velocity, Dimension::Acceleration] {
         // not x100 (unlike the DRVI)
         assert_eq!(u.units[&d].scale, devices::sidecar::Ratio::ONE);
-        assert_eq!(u.units[&d].scaled_by, vec![ScalingKind::FeedConverter]);
+        // 2001h sets the bus unit; 6092h (mm per pulley turn, 3.4.21) and 6091h (3.4.20) relate
+        // the millimetres to motor turns.
+        assert_eq!(
+            u.units[&d].scaled_by,
+            vec![ScalingKind::FeedConverter, ScalingKind::FeedConstant, ScalingKind::GearRatio]
+        );
     }
     // table 3.3: 606Eh / 6070h in ms
     assert_eq!(u.units[&Dimension::Time].unit, Unit::Millisecond);

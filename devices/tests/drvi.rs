@@ -591,10 +591,25 @@ mod sidecar {
         let f = super::default_int(0x6092, feed.subs["feed"]);
         let revs = super::default_int(0x6092, feed.subs["shaft_revolutions"]);
         assert_eq!(f / (100 * revs), 1);
+        // The feed counts hundredths of a millimetre (Table 6.2's position unit).
+        let fu = feed.feed_unit.expect("6092h counts 0.01 mm");
+        assert_eq!((fu.unit, fu.scale), (Unit::Millimeter, Ratio { num: 1, den: 100 }));
         let gear = s.scaling_object(ScalingKind::GearRatio).unwrap();
         assert_eq!(gear.object, r("0x6091"));
         assert_eq!((gear.subs["motor_revolutions"], gear.subs["shaft_revolutions"]), (1, 2));
         assert_eq!(s.scaling_object(ScalingKind::ActuatorType).unwrap().object, r("0x2014"));
+        // Issue #28: the actuator's units turn the motor through 6092h and 6091h (6.3.4.22,
+        // 6.3.4.23); only motor counts motor degrees through 2001h alone.
+        for system in &s.unit_systems {
+            for d in [Dimension::Position, Dimension::Velocity, Dimension::Acceleration] {
+                let want: &[ScalingKind] = if system.name == "actuator" {
+                    &[ScalingKind::FeedConverter, ScalingKind::FeedConstant, ScalingKind::GearRatio]
+                } else {
+                    &[ScalingKind::FeedConverter]
+                };
+                assert_eq!(system.units[&d].scaled_by, want, "{} {d:?}", system.name);
+            }
+        }
     }
 
     #[test]

@@ -749,6 +749,18 @@ fn factor_values_that_divide_by_zero_are_refused() {
     m.write_u32(4, 0x6099, 1, 100).unwrap();
 }
 
+/// 6.5 lists the factor group as 204Ch, 608Fh, 6091h and 6092h; the texts of 607Ah and 6083h
+/// name the older DS402 factors 6093h and 6097h, which neither the object list nor the EDS
+/// has (nor 6094h): the drive answers "object does not exist" and scales by 6.5 alone.
+#[test]
+fn the_older_ds402_factors_are_not_objects_of_this_drive() {
+    let mut m = started(4);
+    for index in [0x6093, 0x6094, 0x6097] {
+        assert_eq!(m.read_u32(4, index, 1), Err(SdoError::Abort(0x0602_0000)), "{index:04X}h");
+        assert_eq!(m.write_u32(4, index, 1, 36_000), Err(SdoError::Abort(0x0602_0000)), "{index:04X}h");
+    }
+}
+
 #[test]
 fn profile_velocity_with_halt_and_velocity_reached() {
     let mut m = started(4);

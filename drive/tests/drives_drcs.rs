@@ -17,6 +17,7 @@ use generated::drcs::Dictionary;
 use generated::drcs::units::{Dimension, Quantity, Ratio, Unit, Units};
 use od_runtime::NodeId;
 use od_runtime::cia402::State;
+use od_runtime::od::ObjectDictionary;
 
 const ID: u8 = 3;
 const SDO_RX: u32 = 0x600 + ID as u32;
@@ -573,12 +574,14 @@ fn profile_velocity_windows_thresholds_and_halt() {
 // ---------------------------------------------------------------------------------------------
 // Units and the feed converter (chapter 4, 3.6.1).
 
-/// The generated units module for the device's current 2001h (read over SDO into a local copy
-/// of the dictionary).
+/// The generated units module for the device's current 2001h, 6091h and 6092h (read over SDO
+/// into a local copy of the dictionary; 6091h and 6092h are read-only on the bus).
 fn units(m: &mut Master) -> Units {
     let mut od = Dictionary::new(ID);
-    od.set_feed_converter_numerator(m.read_u32(ID, 0x2001, 1).unwrap()).unwrap();
-    od.set_feed_converter_denominator(m.read_u32(ID, 0x2001, 2).unwrap()).unwrap();
+    for (index, sub) in [(0x2001, 1), (0x2001, 2), (0x6091, 1), (0x6091, 2), (0x6092, 1), (0x6092, 2)] {
+        let v = m.read_u32(ID, index, sub).unwrap();
+        od.write(index, sub, &v.to_le_bytes()).unwrap();
+    }
     Units::from_dictionary(&od).unwrap()
 }
 
@@ -638,6 +641,35 @@ fn absolute_and_relative_moves_in_mm_through_the_generated_units() {
     m.advance(1_000_000);
     assert_eq!(velocity(&mut m), -2);
     assert_eq!(app(&m).drive().axis().status().velocity_actual, -50_800);
+}
+
+/// Issue #28 on the DRCS: 6092h (mm per pulley revolution) and 6091h (motor per pulley
+/// revolutions), which QSet sets (3.4.20, 3.4.21), relate the actuator's millimetres to motor
+/// turns in the drive (2103h counts motor revolutions, 3.6.9) and in the generated units alike,
+/// whatever unit 2001h makes of the millimetres.
+#[test]
+fn motor_turns_follow_the_feed_constant_and_the_gear_ratio() {
+    use Dimension::Position;
+    for (gear, turns) in [((1, 1), 2), ((2, 1), 4), ((3, 2), 3)] {
+        let mut m = drcs_with(Mechanics { gear_ratio: gear, ..Mechanics::actuator() });
+        assert_eq!((m.read_u32(ID, 0x6091, 1).unwrap(), m.read_u32(ID, 0x6091, 2).unwrap()), gear);
+        assert_eq!((m.read_u32(ID, 0x6092, 1).unwrap(), m.read_u32(ID, 0x6092, 2).unwrap()), (70, 1));
+        enabled_and_homed(&mut m);
+        move_mm(&mut m, mm(140), false); // two pulley turns of 70 mm
+        let why = format!("6091h = {}/{}", gear.0, gear.1);
+        assert_eq!(m.read_u32(ID, 0x2103, 0).unwrap(), turns as u32, "{why}: motor revolutions");
+        let u = units(&mut m);
+        assert_eq!(u.to_internal(Position, position(&mut m)).unwrap(), Ratio::int(turns), "{why}");
+        let one_turn =
+            Quantity::new(Ratio::new(70 * i128::from(gear.1), i128::from(gear.0)).unwrap(), Unit::Millimeter);
+        assert_eq!(u.internal_to_physical(Position, Ratio::int(1)).unwrap(), one_turn, "{why}");
+        // Micrometres (2001h = 1000/1): the same motor turns for the same travel.
+        m.write_u32(ID, 0x2001, 1, 1000).unwrap();
+        let u = units(&mut m);
+        assert_eq!(position(&mut m), 140_000);
+        assert_eq!(u.to_internal(Position, 140_000).unwrap(), Ratio::int(turns), "{why}");
+        assert_eq!(u.internal_to_raw(Position, Ratio::int(turns)).unwrap(), 140_000, "{why}");
+    }
 }
 
 #[test]

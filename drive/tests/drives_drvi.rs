@@ -6,8 +6,8 @@ use std::sync::{Arc, Mutex};
 
 use drive::drives::drvi::{self, Drvi, warning};
 use drive::drives::master::{Master, SdoError};
-use drive::drives::{Cia402App, SharedTrace};
-use drive::motion::{Cam, Environment};
+use drive::drives::{Cia402App, SharedTrace, Vendor};
+use drive::motion::{Cam, Environment, Machine, Ratio as Ratio1};
 use drive::node::{MemoryRetain, Node, NodeStorage, ParameterSet, Sim};
 use drive::storage::FileStorage;
 use drive::trace::Trace;
@@ -15,6 +15,7 @@ use generated::drvi::Dictionary;
 use generated::drvi::units::{Dimension, Quantity, Ratio, Unit, Units};
 use od_runtime::NodeId;
 use od_runtime::cia402::State;
+use od_runtime::od::ObjectDictionary;
 
 const ID: u8 = 3;
 const EMCY: u32 = 0x80 + ID as u32;
@@ -437,6 +438,7 @@ fn a_proximity_overrun_is_the_soft_homing_error_8613h() {
 #[test]
 fn actuator_type_2014h_switches_the_unit_system() {
     let mut m = master();
+    free_machine(&mut m);
     home(&mut m, 37, 0);
     m.set_mode(ID, 3).unwrap();
     profile(&mut m, 0, 100);
@@ -448,13 +450,15 @@ fn actuator_type_2014h_switches_the_unit_system() {
     assert_eq!(pos(&mut m) - p0, 36_000);
     m.write_i32(ID, 0x60FF, 0, 0).unwrap();
     m.advance(1_000_000);
-    // Custom actuator: 6000 = 60 mm/s = 6000 position units (0.01 mm) per second.
+    // Custom actuator with the default screw pitch 6092h = 100/1 (1 mm per turn, 6.3.4.23):
+    // 1000 = 10 mm/s = 1000 position units (0.01 mm) per second, ten motor turns a second.
     m.write_u8(ID, 0x2014, 0, 7).unwrap();
-    m.write_i32(ID, 0x60FF, 0, 6000).unwrap();
+    m.write_i32(ID, 0x60FF, 0, 1000).unwrap();
     m.advance(1_000_000);
-    let p0 = pos(&mut m);
+    let (p0, c0) = (pos(&mut m), counts(&m));
     m.advance(1_000_000);
-    assert_eq!(pos(&mut m) - p0, 6_000);
+    assert_eq!(pos(&mut m) - p0, 1_000);
+    assert_eq!(counts(&m) - c0, 10 * 36_000, "ten motor turns");
     let units = generated::drvi::units::Units::from_dictionary(&{
         let mut od = Dictionary::new(ID);
         od.set_actuator_type(7).unwrap();
@@ -464,14 +468,26 @@ fn actuator_type_2014h_switches_the_unit_system() {
     assert_eq!(units.unit(generated::drvi::units::Dimension::Position), Some(generated::drvi::units::Unit::Millimeter));
 }
 
-/// The generated units module fed with the drive's own 2014h and 2001h, as a master would
-/// build it.
+/// The generated units module fed with the drive's own 2014h, 2001h, 6091h and 6092h, as a
+/// master would build it.
 fn units(m: &mut Master) -> Units {
     let mut od = Dictionary::new(ID);
     od.set_actuator_type(m.read_u8(ID, 0x2014, 0).unwrap()).unwrap();
-    od.set_feed_converter_numerator(m.read_u32(ID, 0x2001, 1).unwrap()).unwrap();
-    od.set_feed_converter_denominator(m.read_u32(ID, 0x2001, 2).unwrap()).unwrap();
+    for (index, sub) in [(0x2001, 1), (0x2001, 2), (0x6091, 1), (0x6091, 2), (0x6092, 1), (0x6092, 2)] {
+        let v = m.read_u32(ID, index, sub).unwrap();
+        od.write(index, sub, &v.to_le_bytes()).unwrap();
+    }
     Units::from_dictionary(&od).unwrap()
+}
+
+/// A free motor (no end stops): the unit tests turn it many times.
+fn free_machine(m: &mut Master) {
+    set_environment(m, Machine::free().environment(drvi::COUNTS_PER_MACHINE_UNIT, drvi::MACHINE_UNITS_PER_TURN));
+}
+
+/// The motor's position in the drive's counts (0.01° of the motor, 36 000 a turn).
+fn counts(m: &Master) -> i64 {
+    i64::from(app(m).drive().axis().status().position_actual)
 }
 
 fn raw(m: &mut Master, d: Dimension, q: Quantity) -> i64 {
@@ -494,6 +510,7 @@ fn quantity(n: i128, d: i128, unit: Unit) -> Quantity {
 fn moves_in_degrees_millimetres_and_inches_through_the_generated_units() {
     use Dimension::{Acceleration, Position, Velocity};
     let mut m = master();
+    free_machine(&mut m);
     home(&mut m, 37, 0);
     assert_eq!(units(&mut m).unit(Position), Some(Unit::Degree));
     let v = raw(&mut m, Velocity, Quantity::int(60, Unit::Rpm));
@@ -509,8 +526,10 @@ fn moves_in_degrees_millimetres_and_inches_through_the_generated_units() {
     move_to(&mut m, back as i32, true);
     assert_eq!(physical(&mut m, Position, 0x6064), quantity(1439, 4, Unit::Degree), "359.75 deg");
 
-    // A custom actuator (2014h = 7): 0.01 mm; then inches through 2001h = 100/254.
+    // A custom actuator (2014h = 7) with a 5 mm screw (6092h = 500/1): 0.01 mm; then inches
+    // through 2001h = 100/254.
     m.write_u8(ID, 0x2014, 0, 7).unwrap();
+    m.write_u32(ID, 0x6092, 1, 500).unwrap();
     assert_eq!(units(&mut m).unit(Position), Some(Unit::Millimeter));
     let v = raw(&mut m, Velocity, Quantity::int(100, Unit::MillimeterPerSecond));
     let a = raw(&mut m, Acceleration, Quantity::int(1000, Unit::MillimeterPerSecond2));
@@ -596,23 +615,280 @@ fn unit_changes_show_in_the_actual_values_at_once() {
     assert_eq!(m.read_i64(ID, 0x6062, 0).unwrap(), 100);
     assert_eq!(app(&m).drive().ticks(), ticks, "no tick in between");
     m.write_u32(ID, 0x2001, 2, 1).unwrap();
-    // 60 rpm only motor = 36000 units/s; as an actuator the same speed is 36000 (0.01 mm/s).
+    // 60 rpm only motor, one turn a second; as an actuator with the default 1 mm screw
+    // (6092h = 100/1) that is 1 mm/s = 100 (0.01 mm/s).
     m.set_mode(ID, 3).unwrap();
     profile(&mut m, 0, 100);
     m.write_i32(ID, 0x60FF, 0, 6000).unwrap();
     m.advance(1_000_000);
     assert_eq!(vel(&mut m), 6000);
     let ticks = app(&m).drive().ticks();
+    let at = pos(&mut m);
     m.write_u8(ID, 0x2014, 0, 7).unwrap();
-    assert_eq!(vel(&mut m), 36_000, "the speed of a moment ago in the new unit");
+    assert_eq!(vel(&mut m), 100, "the speed of a moment ago in the new unit");
+    // 6064h: the same motor angle, 25 400 + a turn and a bit (0.01°), in 0.01 mm of a 1 mm screw.
+    let mm = |deg: i64, pitch: i64| (deg * pitch + 18_000 * deg.signum()) / 36_000;
+    assert_eq!(pos(&mut m), mm(at, 100));
+    // 6092h and 6091h too: a 5 mm screw, then a 2:1 gear in front of it.
+    m.write_u32(ID, 0x6092, 1, 500).unwrap();
+    assert_eq!(vel(&mut m), 500);
+    assert_eq!(pos(&mut m), mm(at, 500));
+    m.write_u32(ID, 0x6091, 1, 2).unwrap();
+    m.write_u32(ID, 0x6091, 2, 1).unwrap();
+    assert_eq!(vel(&mut m), 250);
+    assert_eq!(pos(&mut m), mm(at, 250));
     assert_eq!(app(&m).drive().ticks(), ticks, "no tick in between");
+}
+
+/// An actuator (2014h = 7) with the screw pitch 6092h = `feed`/1 and the gear 6091h, on a
+/// free motor homed at 0.
+fn actuator(feed: u32, gear: (u32, u32)) -> Master {
+    let mut m = master();
+    free_machine(&mut m);
+    home(&mut m, 37, 0);
+    m.write_u8(ID, 0x2014, 0, 7).unwrap();
+    m.write_u32(ID, 0x6092, 1, feed).unwrap();
+    m.write_u32(ID, 0x6091, 1, gear.0).unwrap();
+    m.write_u32(ID, 0x6091, 2, gear.1).unwrap();
+    m
+}
+
+/// Issue #28, as a master following 6.3.4.23 sees it: one motor turn in the only-motor
+/// configuration (6064h = 36000, 0.01°), then the custom actuator: 6064h is the screw's travel
+/// for one turn, 1.00 mm at 6092h = 100/1, 5.00 mm at 500/1, half that behind a 2:1 gear
+/// (6091h = 2/1); the default 0/0 gear is 1:1. The generated units agree on every value.
+#[test]
+fn one_motor_turn_is_the_screw_pitch_through_the_gear() {
+    use Dimension::Position;
+    for (feed, gear, travel) in
+        [(100, (0, 0), 100), (100, (1, 1), 100), (500, (0, 0), 500), (100, (2, 1), 50), (500, (2, 1), 250)]
+    {
+        let mut m = master();
+        free_machine(&mut m);
+        home(&mut m, 37, 0);
+        profile(&mut m, 6000, 600);
+        move_to(&mut m, 36_000, false);
+        assert_eq!(counts(&m), 36_000, "one motor turn");
+        m.write_u8(ID, 0x2014, 0, 7).unwrap();
+        m.write_u32(ID, 0x6092, 1, feed).unwrap();
+        m.write_u32(ID, 0x6091, 1, gear.0).unwrap();
+        m.write_u32(ID, 0x6091, 2, gear.1).unwrap();
+        let why = format!("6092h = {feed}/1, 6091h = {}/{}", gear.0, gear.1);
+        assert_eq!(pos(&mut m), travel, "{why}");
+        assert_eq!(m.read_i64(ID, 0x6062, 0).unwrap(), travel, "{why}: the demand too");
+        let u = units(&mut m);
+        assert_eq!(physical(&mut m, Position, 0x6064), quantity(travel.into(), 100, Unit::Millimeter), "{why}");
+        assert_eq!(u.to_internal(Position, travel).unwrap(), Ratio::int(1), "{why}: one motor revolution");
+        let one_turn = u.internal_to_physical(Position, Ratio::int(1)).unwrap();
+        assert_eq!(one_turn, quantity(travel.into(), 100, Unit::Millimeter), "{why}");
+        assert_eq!(u.internal_to_raw(Position, Ratio::int(1)).unwrap(), travel, "{why}");
+    }
+}
+
+/// A move to 10.00 mm turns the motor 10 times at 6092h = 100/1 (20 times behind a 2:1 gear,
+/// twice at 500/1); the target, the profile and the actual values all in 0.01 mm, the
+/// velocity read back in 0.01 mm/s, and the generated units give the same motor revolutions.
+#[test]
+fn a_move_to_10_mm_turns_the_motor_as_the_screw_and_the_gear_say() {
+    use Dimension::{Acceleration, Position, Velocity};
+    for (feed, gear, turns) in [(100, (1, 1), 10), (100, (2, 1), 20), (500, (1, 1), 2), (500, (3, 2), 3)] {
+        let mut m = actuator(feed, gear);
+        let why = format!("6092h = {feed}/1, 6091h = {}/{}", gear.0, gear.1);
+        let v = raw(&mut m, Velocity, Quantity::int(5, Unit::MillimeterPerSecond));
+        let a = raw(&mut m, Acceleration, Quantity::int(50, Unit::MillimeterPerSecond2));
+        assert_eq!((v, a), (500, 50));
+        profile(&mut m, v as u32, a as u32);
+        let target = raw(&mut m, Position, Quantity::int(10, Unit::Millimeter));
+        assert_eq!(target, 1000);
+        move_to(&mut m, target as i32, false);
+        assert_eq!(counts(&m), turns * 36_000, "{why}: {turns} motor turns");
+        assert_eq!(pos(&mut m), 1000, "{why}");
+        let u = units(&mut m);
+        assert_eq!(u.to_internal(Position, 1000).unwrap(), Ratio::int(turns), "{why}");
+        // Back at the profile velocity: 5 mm/s, read as 500 (0.01 mm/s) while it runs.
+        m.write_i32(ID, 0x607A, 0, 0).unwrap();
+        m.controlword(ID, 0x1F).unwrap();
+        m.advance(400_000);
+        assert_eq!(vel(&mut m), -500, "{why}");
+        let rev_s = u.to_internal(Velocity, -500).unwrap();
+        assert_eq!(rev_s, Ratio::new(-5 * i128::from(turns), 10).unwrap(), "{why}: motor rev/s");
+        m.controlword(ID, 0x0F).unwrap();
+        m.wait_statusword(ID, 1 << 10, 1 << 10, 30_000_000, 10_000).expect("target reached");
+        assert_eq!((counts(&m), pos(&mut m)), (0, 0), "{why}");
+    }
+}
+
+/// The machine's positions are the motor's (0.01°, the power-on unit): an actuator shows them
+/// through the screw. The `drvi-actuator` preset's proximity (PROXY INPUT, 2002h bit 3) lies
+/// at 200°..250° of the motor: 20.00..25.00 mm on a 36 mm screw (6092h = 3600/1), half that
+/// behind a 2:1 gear.
+#[test]
+fn the_machine_shows_through_the_screw_and_the_gear() {
+    for (gear, low, high) in [((1, 1), 2_000, 2_500), ((2, 1), 1_000, 1_250)] {
+        let mut m = master();
+        home(&mut m, 37, 0);
+        m.write_u8(ID, 0x2014, 0, 7).unwrap();
+        m.write_u32(ID, 0x6092, 1, 3_600).unwrap();
+        m.write_u32(ID, 0x6091, 1, gear.0).unwrap();
+        m.write_u32(ID, 0x6091, 2, gear.1).unwrap();
+        profile(&mut m, 1_000, 100);
+        let proxy = |m: &mut Master| m.read_u32(ID, 0x2002, 0).unwrap() & 0b1000 != 0;
+        for (target, on) in [(low - 10, false), (low + 10, true), (high - 10, true), (high + 10, false)] {
+            move_to(&mut m, target, false);
+            assert_eq!(proxy(&mut m), on, "6091h = {}/{}: at {target}", gear.0, gear.1);
+        }
+    }
+}
+
+/// 2001h and 6092h divide: a 0 in either sub is refused (0609 0030h), the value kept. 6091h
+/// may be 0 (its printed default 0/0 is 1:1). The generated units report a 0 held in 6092h
+/// (a dictionary written without the drive) as `ZeroFactor`, never a division by zero.
+#[test]
+fn zero_terms_of_the_screw_and_the_feed_converter_are_refused() {
+    let mut m = actuator(100, (0, 0));
+    for (index, sub) in [(0x6092, 1), (0x6092, 2), (0x2001, 1), (0x2001, 2)] {
+        let before = m.read_u32(ID, index, sub).unwrap();
+        assert_eq!(m.write_u32(ID, index, sub, 0), Err(SdoError::Abort(0x0609_0030)), "{index:04X}h sub {sub}");
+        assert_eq!(m.read_u32(ID, index, sub).unwrap(), before);
+    }
+    m.write_u32(ID, 0x6091, 1, 0).unwrap();
+    m.write_u32(ID, 0x6091, 2, 3).unwrap();
+    assert_eq!(units(&mut m).to_internal(Dimension::Position, 100).unwrap(), Ratio::new(1, 3).unwrap());
+    let mut od = Dictionary::new(ID);
+    od.write(0x2014, 0, &[7]).unwrap();
+    od.write(0x6092, 2, &0u32.to_le_bytes()).unwrap();
+    assert_eq!(Units::from_dictionary(&od), Err(generated::drvi::units::UnitError::ZeroFactor { index: 0x6092 }));
+    // The drive itself never divides by it: a held 0 counts as 1 (a 0.01 mm pitch per turn).
+    let s = <Drvi as Vendor<Dictionary>>::scale(&Drvi::default(), &od);
+    assert_eq!(s.position, Ratio1::new(360, 1));
+}
+
+/// The generated units and the drive agree over random factor values (every 32-bit term of
+/// 2001h, 6091h, 6092h, 2014h): the drive's counts (0.01° of the motor) of a bus value are the
+/// generated motor revolutions × 36 000 (degrees × 100 for only motor), rounded half away from
+/// zero, and the bus value of a count the generated `internal_to_raw`; exactly while the
+/// reduced ratio fits 64 bits (it always does for screws up to 2000 mm), otherwise within one
+/// count (the drive's approximation is within 2^-63).
+mod agreement {
+    use super::*;
+    use drive::drives::BusScale;
+    use proptest::prelude::*;
+
+    fn od(actuator: u8, fc: (u32, u32), gear: (u32, u32), feed: (u32, u32)) -> Dictionary {
+        let mut od = Dictionary::new(ID);
+        od.write(0x2014, 0, &[actuator]).unwrap();
+        for ((index, sub), v) in [
+            ((0x2001, 1), fc.0),
+            ((0x2001, 2), fc.1),
+            ((0x6091, 1), gear.0),
+            ((0x6091, 2), gear.1),
+            ((0x6092, 1), feed.0),
+            ((0x6092, 2), feed.1),
+        ] {
+            od.write(index, sub, &v.to_le_bytes()).unwrap();
+        }
+        od
+    }
+
+    /// `x` rounded half away from zero, if it fits an `i64`.
+    fn round(x: Ratio) -> Option<i64> {
+        i64::try_from(x.round()).ok()
+    }
+
+    fn close(drive: i64, units: i64, exact: bool) -> bool {
+        if exact { drive == units } else { drive.abs_diff(units) <= 1 }
+    }
+
+    /// The drive's ratio is exactly `want`.
+    fn exact(r: drive::motion::Ratio, want: Ratio) -> bool {
+        Ratio::new(r.num.into(), r.den.into()) == Some(want)
+    }
+
+    fn check(s: BusScale, u: &Units, only_motor: bool, bus: i32, count: i32) -> Result<(), TestCaseError> {
+        use Dimension::{Acceleration, Position, Velocity};
+        let bus = i64::from(bus);
+        // Counts (per second, per second²) per bus unit.
+        let per = |d: Dimension| -> Ratio {
+            if only_motor {
+                // Degrees per raw unit × 100 = counts of 0.01°; rpm (rpm/s) per raw unit × 600
+                // (1 rpm = 6 °/s = 600 counts/s).
+                let k = if d == Position { 100 } else { 600 };
+                u.factor(d).unwrap().checked_mul(Ratio::int(k)).unwrap()
+            } else {
+                u.internal_factor(d).unwrap().checked_mul(Ratio::int(36_000)).unwrap()
+            }
+        };
+        for (d, r) in [(Position, s.position), (Velocity, s.velocity), (Acceleration, s.acceleration)] {
+            let want = per(d);
+            let is_exact = exact(r, want);
+            let got_in = match d {
+                Position => s.position_in(bus),
+                Velocity => s.velocity_in(bus),
+                _ => s.acceleration_in(bus),
+            };
+            if let Some(w) = want.checked_mul_int(bus).and_then(round).filter(|w| w.unsigned_abs() < 1 << 62) {
+                prop_assert!(close(got_in, w, is_exact), "{d:?} in: drive {got_in}, units {w}");
+            }
+            if d == Position && !only_motor {
+                let back = s.position_out(i64::from(count));
+                let w = u.internal_to_raw(Position, Ratio::new(i128::from(count), 36_000).unwrap());
+                if let Ok(w) = w {
+                    prop_assert!(close(back, w, is_exact), "position out: drive {back}, units {w}");
+                }
+            }
+        }
+        Ok(())
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(512))]
+
+        #[test]
+        fn over_random_factors(
+            actuator in prop_oneof![Just(0u8), Just(7u8), any::<u8>()],
+            fc in (1..=u32::MAX, 1..=u32::MAX),
+            gear in (0..=u32::MAX, 0..=u32::MAX),
+            feed in (1..=u32::MAX, 1..=u32::MAX),
+            bus in any::<i32>(),
+            count in any::<i32>(),
+        ) {
+            let od = od(actuator, fc, gear, feed);
+            let s = <Drvi as Vendor<Dictionary>>::scale(&Drvi::default(), &od);
+            let u = Units::from_dictionary(&od).unwrap();
+            check(s, &u, actuator == 0, bus, count)?;
+        }
+
+        /// Screws a DRVI can have (UVIX 7.5.1: 0..2000 mm a turn) and real gears: exact.
+        #[test]
+        fn over_real_screws(
+            fc in (1..=1000u32, 1..=1000u32),
+            gear in (0..=100u32, 0..=100u32),
+            feed in (1..=200_000u32, 1..=10u32),
+            bus in any::<i32>(),
+            count in any::<i32>(),
+        ) {
+            let od = od(7, fc, gear, feed);
+            let s = <Drvi as Vendor<Dictionary>>::scale(&Drvi::default(), &od);
+            let u = Units::from_dictionary(&od).unwrap();
+            let g = u.internal_factor(Dimension::Position).unwrap().checked_mul(Ratio::int(36_000)).unwrap();
+            prop_assert!(exact(s.position, g), "{:?} vs {g}", s.position);
+            check(s, &u, false, bus, count)?;
+        }
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
 // Software limits (5.0.1).
 
+/// An actuator of 100 mm per motor turn (6092h = 10000/1: a belt): one bus unit (0.01 mm) is
+/// 3.6 counts, and the preset's end stops lie at −138.89 mm and 416.67 mm.
+fn belt(m: &mut Master) {
+    m.write_u8(ID, 0x2014, 0, 7).unwrap();
+    m.write_u32(ID, 0x6092, 1, 10_000).unwrap();
+}
+
 fn limited(m: &mut Master) {
-    m.write_u8(ID, 0x2014, 0, 7).unwrap(); // actuator
+    belt(m);
     m.write_i32(ID, 0x607C, 0, 1_000).unwrap();
     m.write_i32(ID, 0x607D, 1, -9_000).unwrap();
     m.write_i32(ID, 0x607D, 2, 21_000).unwrap(); // corrected: −10000 .. 20000
@@ -751,18 +1027,19 @@ fn inputs_2002h_and_the_output_2003h() {
 #[test]
 fn the_ext_proxy_input_is_a_hardware_limit_under_2010h() {
     let mut m = master();
+    // EXT PROXY at 30 000 counts (83.33 mm on the belt).
     set_environment(&mut m, Environment { positive_limit: Some(30_000), ..drvi::default_environment() });
-    m.write_u8(ID, 0x2014, 0, 7).unwrap(); // actuator: 10000 = 100 mm/s
+    belt(&mut m); // 10000 = 100 mm/s, a turn a second
     m.switch_on(ID).unwrap();
     m.set_mode(ID, 3).unwrap();
     profile(&mut m, 0, 1_000);
     m.write_i32(ID, 0x60FF, 0, 10_000).unwrap();
-    m.advance(4_000_000);
-    assert!(pos(&mut m) > 30_000, "2010h = 0: the input is only reported");
+    m.advance(2_000_000);
+    assert!(counts(&m) > 60_000, "2010h = 0: the input is only reported");
     assert_ne!(m.read_u32(ID, 0x2002, 0).unwrap() & 0b100, 0, "2002h bit 2 EXT PROXY");
     assert_eq!(state(&mut m), State::OperationEnabled);
     m.write_i32(ID, 0x60FF, 0, -10_000).unwrap();
-    m.advance(5_000_000);
+    m.advance(2_500_000);
     m.write_i32(ID, 0x60FF, 0, 0).unwrap();
     m.write_u8(ID, 0x2010, 0, 1).unwrap();
     m.advance(1_000_000);
@@ -1052,6 +1329,9 @@ fn saved_parameters_survive_a_restart() {
         m.write_u8(ID, 0x2014, 0, 7).unwrap();
         m.write_u32(ID, 0x2001, 1, 100).unwrap();
         m.write_u32(ID, 0x2001, 2, 254).unwrap();
+        m.write_u32(ID, 0x6091, 1, 2).unwrap();
+        m.write_u32(ID, 0x6091, 2, 1).unwrap();
+        m.write_u32(ID, 0x6092, 1, 500).unwrap();
         m.write_u16(ID, 0x2013, 0, 40).unwrap();
         m.write(ID, 0x1010, 1, b"save").unwrap();
     }
@@ -1061,10 +1341,13 @@ fn saved_parameters_survive_a_restart() {
     assert_eq!(m.read_u64(ID, 0x2014, 0).unwrap(), 7);
     assert_eq!(m.read_u64(ID, 0x2001, 2).unwrap(), 254);
     assert_eq!(m.read_u64(ID, 0x2013, 0).unwrap(), 40);
-    // The restored configuration is in force: the actuator unit system and the feed converter.
+    assert_eq!(m.read_u64(ID, 0x6091, 1).unwrap(), 2);
+    assert_eq!(m.read_u64(ID, 0x6092, 1).unwrap(), 500);
+    // The restored configuration is in force: the actuator unit system, the feed converter, the
+    // gear and the screw: 0.001 in = 2.54 (0.01 mm) × 2 turns / 5 mm × 36 000 = 365.76 counts.
     let units = app(&m).drive().axis().config().units;
-    assert_eq!(units.acceleration.num, 100);
-    assert_eq!(app(&m).drive().scale().position.num, 254);
+    assert_eq!((units.velocity, units.acceleration), (Ratio1::ONE, Ratio1::ONE));
+    assert_eq!(app(&m).drive().scale().position, Ratio1::new(9_144, 25));
     // 1011h "load" + reset node: defaults again.
     m.write(ID, 0x1011, 1, b"load").unwrap();
     m.nmt(0x81, ID);

@@ -12,6 +12,7 @@ use drive::trace::Trace;
 use drive::transport::{CanFrame, Endpoint, SocketcandClient};
 use generated::drvi::Dictionary;
 use generated::drvi::units::{Dimension, Quantity, Ratio, Unit, Units};
+use od_runtime::od::ObjectDictionary;
 
 const WAIT: Duration = Duration::from_secs(10);
 
@@ -297,12 +298,14 @@ fn a_kill_during_save_never_leaves_a_torn_parameter_set() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// The generated units (`generated::drvi::units`) for the 2014h and 2001h the drive reports.
+/// The generated units (`generated::drvi::units`) for the 2014h, 2001h, 6091h and 6092h the
+/// drive reports.
 fn units(bus: &mut SocketcandClient) -> Units {
     let mut od = Dictionary::new(2);
     od.set_actuator_type(read(bus, 0x2014, 0) as u8).unwrap();
-    od.set_feed_converter_numerator(read(bus, 0x2001, 1)).unwrap();
-    od.set_feed_converter_denominator(read(bus, 0x2001, 2)).unwrap();
+    for (index, sub) in [(0x2001, 1), (0x2001, 2), (0x6091, 1), (0x6091, 2), (0x6092, 1), (0x6092, 2)] {
+        od.write(index, sub, &read(bus, index, sub).to_le_bytes()).unwrap();
+    }
     Units::from_dictionary(&od).unwrap()
 }
 
@@ -343,8 +346,9 @@ fn q(n: i128, d: i128, unit: Unit) -> Quantity {
 }
 
 /// Issue #7 point 8 over the TCP hub: homing, then absolute and relative moves given in
-/// degrees (only motor), then in millimetres of a custom actuator read in thousandths of an
-/// inch (2014h = 7, 2001h = 100/254), converted by `generated::drvi::units`.
+/// degrees (only motor), then in millimetres of a custom actuator (a 10 mm screw) read in
+/// thousandths of an inch (2014h = 7, 6092h = 1000/1, 2001h = 100/254), converted by
+/// `generated::drvi::units`.
 #[test]
 fn moves_in_physical_units_through_the_generated_units_over_the_hub() {
     use Dimension::{Acceleration, Position, Velocity};
@@ -369,11 +373,15 @@ fn moves_in_physical_units_through_the_generated_units_over_the_hub() {
     assert_eq!(position(&mut bus), Quantity::int(720, Unit::Degree));
     move_to(&mut bus, q(-721, 4, Unit::Degree), true);
     assert_eq!(position(&mut bus), q(2159, 4, Unit::Degree), "539.75 deg");
-    // A custom actuator read in thousandths of an inch.
+    // A custom actuator, a 10 mm screw (6092h = 1000/1, 6.3.4.23), read in thousandths of an
+    // inch: the motor stands at 539.75 deg, 14.99 mm.
     write(&mut bus, 0x2014, 0, 7, 1);
+    write(&mut bus, 0x6092, 1, 1000, 4);
     write(&mut bus, 0x2001, 1, 100, 4);
     write(&mut bus, 0x2001, 2, 254, 4);
     assert_eq!(units(&mut bus).unit(Position), Some(Unit::Millimeter));
+    assert_eq!(read(&mut bus, 0x6064, 0), 590, "14.99 mm = 0.590 in");
+    assert_eq!(units(&mut bus).to_internal(Position, 1000), Ok(Ratio::new(254, 100).unwrap()));
     let v = to_raw(&mut bus, Velocity, Quantity::int(254, Unit::MillimeterPerSecond));
     let a = to_raw(&mut bus, Acceleration, Quantity::int(2540, Unit::MillimeterPerSecond2));
     write(&mut bus, 0x6081, 0, v, 4);

@@ -30418,6 +30418,8 @@ Denotation=MOTOR.BRAKEIMM
             pub fn internal_factor(&self, d: Dimension) -> Option<Ratio> {
                 self.internal.get(d.slot()).copied().flatten()
             }
+        }
+        impl Units {
             /// `raw × factor`, exact.
             #[inline]
             pub fn to_physical(
@@ -30482,6 +30484,52 @@ Denotation=MOTOR.BRAKEIMM
                     .ok_or(UnitError::NoUnit)?;
                 g.checked_mul_int(raw).ok_or(UnitError::Overflow)
             }
+            /// `internal / internal factor`, exact (may be fractional): the raw value of an
+            /// internal one (encoder increments, or motor revolutions).
+            pub fn internal_to_raw_exact(
+                &self,
+                d: Dimension,
+                internal: Ratio,
+            ) -> Result<Ratio, UnitError> {
+                let g = self
+                    .internal
+                    .get(d.slot())
+                    .copied()
+                    .flatten()
+                    .ok_or(UnitError::NoUnit)?;
+                internal.checked_div(g).ok_or(UnitError::Overflow)
+            }
+            /// `internal / internal factor` rounded to the nearest integer, halves away from
+            /// zero: the raw value the device shows for an internal one.
+            pub fn internal_to_raw(
+                &self,
+                d: Dimension,
+                internal: Ratio,
+            ) -> Result<i64, UnitError> {
+                let raw = self.internal_to_raw_exact(d, internal)?;
+                i64::try_from(raw.round()).map_err(|_| UnitError::Overflow)
+            }
+            /// `internal / internal factor × factor`, exact: the physical value of an internal
+            /// one (how far the load moves for so many motor revolutions).
+            pub fn internal_to_physical(
+                &self,
+                d: Dimension,
+                internal: Ratio,
+            ) -> Result<Quantity, UnitError> {
+                let raw = self.internal_to_raw_exact(d, internal)?;
+                let Some(Some((f, unit))) = self.factor.get(d.slot()) else {
+                    return Err(UnitError::NoUnit);
+                };
+                Ok(Quantity {
+                    value: raw
+                        .checked_mul(f.factor())
+                        .ok_or(UnitError::Overflow)?
+                        .reduced(),
+                    unit: *unit,
+                })
+            }
+        }
+        impl Units {
             /// `0x608F` EncoderResolution: `encoder_increments / motor_revolutions` (subs 1 and 2), reduced; a zero term is an error.
             ///
             /// encoder\_resolution = encoder\_increments / motor\_revolutions \[inc per motor revolution\]; position\_inc = position\_user \* encoder\_resolution \* gear\_ratio / feed\_constant

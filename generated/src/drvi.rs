@@ -15360,13 +15360,10 @@ PDOMapping=0
                     System::OnlyMotor => {
                         {
                             let f = Ratio::new(1, 100).ok_or(UnitError::Overflow)?;
-                            let f = f
-                                .checked_mul(
-                                    Self::feed_converter(od)?
-                                        .recip()
-                                        .ok_or(UnitError::Overflow)?,
-                                )
+                            let c = Self::feed_converter(od)?
+                                .recip()
                                 .ok_or(UnitError::Overflow)?;
+                            let f = f.checked_mul(c).ok_or(UnitError::Overflow)?;
                             factor[0] = Some((
                                 ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Degree,
@@ -15374,13 +15371,10 @@ PDOMapping=0
                         }
                         {
                             let f = Ratio::new(1, 100).ok_or(UnitError::Overflow)?;
-                            let f = f
-                                .checked_mul(
-                                    Self::feed_converter(od)?
-                                        .recip()
-                                        .ok_or(UnitError::Overflow)?,
-                                )
+                            let c = Self::feed_converter(od)?
+                                .recip()
                                 .ok_or(UnitError::Overflow)?;
+                            let f = f.checked_mul(c).ok_or(UnitError::Overflow)?;
                             factor[1] = Some((
                                 ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Rpm,
@@ -15388,13 +15382,10 @@ PDOMapping=0
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
-                            let f = f
-                                .checked_mul(
-                                    Self::feed_converter(od)?
-                                        .recip()
-                                        .ok_or(UnitError::Overflow)?,
-                                )
+                            let c = Self::feed_converter(od)?
+                                .recip()
                                 .ok_or(UnitError::Overflow)?;
+                            let f = f.checked_mul(c).ok_or(UnitError::Overflow)?;
                             factor[2] = Some((
                                 ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::RpmPerSecond,
@@ -15425,45 +15416,72 @@ PDOMapping=0
                     System::Actuator => {
                         {
                             let f = Ratio::new(1, 100).ok_or(UnitError::Overflow)?;
-                            let f = f
+                            let g = Ratio::ONE;
+                            let c = Self::feed_converter(od)?
+                                .recip()
+                                .ok_or(UnitError::Overflow)?;
+                            let f = f.checked_mul(c).ok_or(UnitError::Overflow)?;
+                            let g = g.checked_mul(c).ok_or(UnitError::Overflow)?;
+                            let g = g
                                 .checked_mul(
-                                    Self::feed_converter(od)?
-                                        .recip()
-                                        .ok_or(UnitError::Overflow)?,
+                                    Self::feed_constant(od)?.recip().ok_or(UnitError::Overflow)?,
                                 )
+                                .ok_or(UnitError::Overflow)?;
+                            let g = g
+                                .checked_mul(Self::gear_ratio(od)?)
                                 .ok_or(UnitError::Overflow)?;
                             factor[0] = Some((
                                 ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::Millimeter,
                             ));
+                            internal[0] = Some(g.reduced());
                         }
                         {
                             let f = Ratio::new(1, 100).ok_or(UnitError::Overflow)?;
-                            let f = f
+                            let g = Ratio::ONE;
+                            let c = Self::feed_converter(od)?
+                                .recip()
+                                .ok_or(UnitError::Overflow)?;
+                            let f = f.checked_mul(c).ok_or(UnitError::Overflow)?;
+                            let g = g.checked_mul(c).ok_or(UnitError::Overflow)?;
+                            let g = g
                                 .checked_mul(
-                                    Self::feed_converter(od)?
-                                        .recip()
-                                        .ok_or(UnitError::Overflow)?,
+                                    Self::feed_constant(od)?.recip().ok_or(UnitError::Overflow)?,
                                 )
+                                .ok_or(UnitError::Overflow)?;
+                            let g = g
+                                .checked_mul(Self::gear_ratio(od)?)
                                 .ok_or(UnitError::Overflow)?;
                             factor[1] = Some((
                                 ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MillimeterPerSecond,
                             ));
+                            internal[1] = Some(g.reduced());
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
-                            let f = f
+                            let g = Ratio::ONE;
+                            let c = Self::feed_converter(od)?
+                                .recip()
+                                .ok_or(UnitError::Overflow)?;
+                            let f = f.checked_mul(c).ok_or(UnitError::Overflow)?;
+                            let g = g.checked_mul(c).ok_or(UnitError::Overflow)?;
+                            let g = g
+                                .checked_mul(Ratio::new(100, 1).ok_or(UnitError::Overflow)?)
+                                .ok_or(UnitError::Overflow)?;
+                            let g = g
                                 .checked_mul(
-                                    Self::feed_converter(od)?
-                                        .recip()
-                                        .ok_or(UnitError::Overflow)?,
+                                    Self::feed_constant(od)?.recip().ok_or(UnitError::Overflow)?,
                                 )
+                                .ok_or(UnitError::Overflow)?;
+                            let g = g
+                                .checked_mul(Self::gear_ratio(od)?)
                                 .ok_or(UnitError::Overflow)?;
                             factor[2] = Some((
                                 ::od_runtime::__private_v2::Scale::new(f),
                                 Unit::MillimeterPerSecond2,
                             ));
+                            internal[2] = Some(g.reduced());
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
@@ -15508,6 +15526,8 @@ PDOMapping=0
             pub fn internal_factor(&self, d: Dimension) -> Option<Ratio> {
                 self.internal.get(d.slot()).copied().flatten()
             }
+        }
+        impl Units {
             /// `raw × factor`, exact.
             #[inline]
             pub fn to_physical(
@@ -15572,6 +15592,52 @@ PDOMapping=0
                     .ok_or(UnitError::NoUnit)?;
                 g.checked_mul_int(raw).ok_or(UnitError::Overflow)
             }
+            /// `internal / internal factor`, exact (may be fractional): the raw value of an
+            /// internal one (encoder increments, or motor revolutions).
+            pub fn internal_to_raw_exact(
+                &self,
+                d: Dimension,
+                internal: Ratio,
+            ) -> Result<Ratio, UnitError> {
+                let g = self
+                    .internal
+                    .get(d.slot())
+                    .copied()
+                    .flatten()
+                    .ok_or(UnitError::NoUnit)?;
+                internal.checked_div(g).ok_or(UnitError::Overflow)
+            }
+            /// `internal / internal factor` rounded to the nearest integer, halves away from
+            /// zero: the raw value the device shows for an internal one.
+            pub fn internal_to_raw(
+                &self,
+                d: Dimension,
+                internal: Ratio,
+            ) -> Result<i64, UnitError> {
+                let raw = self.internal_to_raw_exact(d, internal)?;
+                i64::try_from(raw.round()).map_err(|_| UnitError::Overflow)
+            }
+            /// `internal / internal factor × factor`, exact: the physical value of an internal
+            /// one (how far the load moves for so many motor revolutions).
+            pub fn internal_to_physical(
+                &self,
+                d: Dimension,
+                internal: Ratio,
+            ) -> Result<Quantity, UnitError> {
+                let raw = self.internal_to_raw_exact(d, internal)?;
+                let Some(Some((f, unit))) = self.factor.get(d.slot()) else {
+                    return Err(UnitError::NoUnit);
+                };
+                Ok(Quantity {
+                    value: raw
+                        .checked_mul(f.factor())
+                        .ok_or(UnitError::Overflow)?
+                        .reduced(),
+                    unit: *unit,
+                })
+            }
+        }
+        impl Units {
             /// `0x2001` FeedConverter: `numerator / denominator` (subs 1 and 2), reduced; a zero term is an error.
             ///
             /// value\_new = value\_default \* numerator / denominator (the manual writes: New unit = default unit \* Numerator / Denominator); default 1/1 leaves Table 6.2 units unchanged
@@ -15600,7 +15666,7 @@ PDOMapping=0
             }
             /// `0x6092` FeedConstant: `feed / shaft_revolutions` (subs 1 and 2), reduced; a zero term is an error.
             ///
-            /// screw\_pitch\_mm\_per\_rev = feed / (100 \* shaft\_revolutions); actuator configuration: position\_mm = driven shaft revolutions \* screw\_pitch\_mm\_per\_rev
+            /// screw\_pitch\_mm\_per\_rev = feed / (100 \* shaft\_revolutions); actuator configuration: motor\_revolutions = position\_mm \* 100 \* shaft\_revolutions / feed \* gear\_ratio
             pub fn feed_constant(od: &super::Dictionary) -> Result<Ratio, UnitError> {
                 let (t, b) = (
                     (od.feed_constant_feed() as i128),

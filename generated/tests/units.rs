@@ -83,6 +83,85 @@ mod drvi {
         assert_eq!(u.set_target_position(&mut od, huge), Err(UnitError::OutOfRange));
     }
 
+    /// A DRVI actuator with 2014h = 7, 6092h = feed/1, 6091h = motor/shaft.
+    fn actuator(feed: u32, gear: (u32, u32)) -> Dictionary {
+        let mut od = Dictionary::new(32);
+        od.set_actuator_type(7).unwrap();
+        od.set_feed_constant_feed(feed).unwrap();
+        od.set_gear_ratio_motor_revolutions(gear.0).unwrap();
+        od.set_gear_ratio_shaft_revolutions(gear.1).unwrap();
+        od
+    }
+
+    fn mm(n: i128, d: i128) -> Quantity {
+        Quantity::new(Ratio::new(n, d).unwrap(), Unit::Millimeter)
+    }
+
+    /// Issue #28: one motor turn is 1.00 mm at 6092h = 100/1, 5.00 mm at 500/1, half that
+    /// behind a 2:1 gear; a move to 10.00 mm is 10 motor turns at 100/1. Velocities (0.01 mm/s)
+    /// and accelerations (whole mm/s², Table 6.2) count the same millimetres.
+    #[test]
+    fn one_motor_turn_is_the_screw_pitch_through_the_gear() {
+        use Dimension::{Acceleration, Position, Velocity};
+        for (feed, gear, hundredths) in
+            [(100, (0, 0), 100), (100, (1, 1), 100), (500, (1, 1), 500), (100, (2, 1), 50), (500, (2, 1), 250)]
+        {
+            let u = Units::from_dictionary(&actuator(feed, gear)).unwrap();
+            let turn = Ratio::int(1);
+            assert_eq!(u.internal_to_physical(Position, turn), Ok(mm(hundredths, 100)), "{feed} {gear:?}");
+            assert_eq!(u.internal_to_raw(Position, turn), Ok(hundredths as i64));
+            assert_eq!(u.to_internal(Position, hundredths as i64), Ok(turn));
+            let per_s = Quantity::new(Ratio::new(hundredths, 100).unwrap(), Unit::MillimeterPerSecond);
+            assert_eq!(u.internal_to_physical(Velocity, turn), Ok(per_s), "a turn a second");
+            let per_s2 = Quantity::new(Ratio::new(hundredths, 100).unwrap(), Unit::MillimeterPerSecond2);
+            assert_eq!(u.internal_to_physical(Acceleration, turn), Ok(per_s2), "a turn a second squared");
+        }
+        let u = Units::from_dictionary(&actuator(100, (0, 0))).unwrap();
+        let raw = u.to_raw(Position, mm(10, 1)).unwrap();
+        assert_eq!((raw, u.to_internal(Position, raw)), (1000, Ok(Ratio::int(10))), "10.00 mm: 10 turns");
+        // With 2001h = 100/254 (0.001 in): an inch is 25.4 motor turns of a 1 mm screw.
+        let mut od = actuator(100, (1, 1));
+        od.set_feed_converter_numerator(100).unwrap();
+        od.set_feed_converter_denominator(254).unwrap();
+        let u = Units::from_dictionary(&od).unwrap();
+        assert_eq!(u.to_internal(Position, 1000), Ok(Ratio::new(254, 10).unwrap()));
+        // Only motor has no screw: no internal factor.
+        let u = Units::from_dictionary(&Dictionary::new(32)).unwrap();
+        assert_eq!(u.to_internal(Position, 36_000), Err(UnitError::NoUnit));
+        // A 0 in 6092h divides by zero: an error, never a panic.
+        let mut od = actuator(100, (1, 1));
+        od.set_feed_constant_shaft_revolutions(0).unwrap();
+        assert_eq!(Units::from_dictionary(&od), Err(UnitError::ZeroFactor { index: 0x6092 }));
+    }
+
+    proptest! {
+        /// Over every 32-bit term: motor revolutions per bus unit are exactly
+        /// `den2001 × motor × shaft6092 / (num2001 × shaft6091 × feed)` for positions and
+        /// velocities (the feed counts 0.01 mm), 100 times that for accelerations (mm/s²), and `internal_to_raw` inverts
+        /// `to_internal`.
+        #[test]
+        fn the_actuator_chain_is_exact_over_random_terms(
+            fc in (1..=u32::MAX, 1..=u32::MAX), gear in (0..=u32::MAX, 0..=u32::MAX),
+            feed in (1..=u32::MAX, 1..=u32::MAX), raw in any::<i32>(),
+        ) {
+            use Dimension::{Acceleration, Position, Velocity};
+            let mut od = actuator(feed.0, gear);
+            od.set_feed_constant_shaft_revolutions(feed.1).unwrap();
+            od.set_feed_converter_numerator(fc.0).unwrap();
+            od.set_feed_converter_denominator(fc.1).unwrap();
+            let u = Units::from_dictionary(&od).unwrap();
+            let one = |x: u32| i128::from(x.max(1));
+            let g = Ratio::new(one(fc.1) * one(gear.0) * one(feed.1), one(fc.0) * one(gear.1) * one(feed.0)).unwrap();
+            prop_assert_eq!(u.internal_factor(Position), Some(g));
+            prop_assert_eq!(u.internal_factor(Velocity), Some(g));
+            prop_assert_eq!(u.internal_factor(Acceleration), g.checked_mul(Ratio::int(100)));
+            let revs = u.to_internal(Position, i64::from(raw)).unwrap();
+            prop_assert_eq!(u.internal_to_raw(Position, revs), Ok(i64::from(raw)));
+            let phys = u.to_physical(Position, i64::from(raw)).unwrap();
+            prop_assert_eq!(u.internal_to_physical(Position, revs), Ok(phys));
+        }
+    }
+
     proptest! {
         #[test]
         fn physical_raw_physical_is_within_half_an_lsb(
@@ -128,6 +207,25 @@ mod drcs {
         assert_eq!(u.to_raw_exact(Dimension::Position, turn), Ok(Ratio::new(15_984, 5).unwrap())); // 3196.8
         assert_eq!(u.to_raw(Dimension::Position, turn), Ok(3197));
         assert_eq!(u.to_physical(Dimension::Position, 888).unwrap(), Quantity::int(100, Unit::Degree));
+    }
+
+    /// 6092h (mm per pulley turn) and 6091h relate millimetres to motor turns (3.4.20,
+    /// 3.4.21): 70 mm a turn with the default belt, 35 mm behind a 2:1 gear, in any 2001h unit.
+    #[test]
+    fn feed_constant_and_gear_ratio_give_motor_turns() {
+        let mut od = Dictionary::new(3);
+        let u = Units::from_dictionary(&od).unwrap();
+        assert_eq!(u.to_internal(Dimension::Position, 140), Ok(Ratio::int(2)));
+        assert_eq!(u.internal_to_physical(Dimension::Position, Ratio::int(1)), Ok(Quantity::int(70, Unit::Millimeter)));
+        od.set_gear_ratio_motor_revolutions(2).unwrap();
+        od.set_feed_converter_numerator(1000).unwrap(); // micrometres
+        let u = Units::from_dictionary(&od).unwrap();
+        assert_eq!(u.to_internal(Dimension::Position, 140_000), Ok(Ratio::int(4)));
+        assert_eq!(u.internal_to_raw(Dimension::Position, Ratio::int(1)), Ok(35_000));
+        assert_eq!(u.to_internal(Dimension::Velocity, 70_000), Ok(Ratio::int(2)), "turns per second");
+        // Only motor (degrees) has no screw.
+        let u = Units::with_system(System::OnlyMotor, &od).unwrap();
+        assert_eq!(u.internal_factor(Dimension::Position), None);
     }
 
     #[test]

@@ -12,16 +12,21 @@
 //!
 //!   | kind | object (typical) | effect on `physical = raw × factor` | effect on `internal = raw × internal_factor` |
 //!   |---|---|---|---|
-//!   | `feed_converter` | Camozzi 2001h | `× denominator / numerator` (`value_new = value_default × numerator / denominator`) | — |
+//!   | `feed_converter` | Camozzi 2001h | `× denominator / numerator` (`value_new = value_default × numerator / denominator`) | the same: the internal value follows the default unit |
 //!   | `encoder_resolution` | 608Fh | — | `× increments / motor revolutions` |
 //!   | `gear_ratio` | 6091h | — | `× motor revolutions / shaft revolutions` (a zero term counts as 1) |
-//!   | `feed_constant` | 6092h | — | `× shaft revolutions / feed` |
+//!   | `feed_constant` | 6092h | — | `× scale / feed_unit × shaft revolutions / feed` |
 //!   | `velocity_factor` | AKD 204Ch | — | `× numerator / denominator` |
 //!   | `actuator_type` | DRVI 2014h | selects the system | — |
 //!
 //!   The internal value is in encoder increments when `encoder_resolution` is in the chain, else
 //!   in motor revolutions (CiA 402 factor group: `position_inc = position_user × resolution ×
-//!   gear / feed`).
+//!   gear / feed`). The feed counts in one unit of the dimension's physical length unless the
+//!   scaling object gives a `feed_unit` (the DRVI's 6092h counts hundredths of a millimetre,
+//!   while its accelerations are whole mm/s²): the dimension's fixed-point `scale` is divided by
+//!   it, so a feed of 100 at `feed_unit = 1/100 mm` is 1 mm per shaft revolution for positions
+//!   (0.01 mm), velocities (0.01 mm/s) and accelerations (mm/s²) alike. `internal_to_raw` and
+//!   `internal_to_physical` go the other way (how far the load moves for so many motor turns).
 //! * Typed accessors on `Units` for every entry the sidecar gives a dimension
 //!   (`units.target_position(&od)` → `Quantity`, `units.set_target_position(&mut od, q)`).
 //! * With `[bus_scaling]` (AKD): `bus_scaling(index, sub)` and `to_workbench`.
@@ -40,7 +45,7 @@
 
 use std::collections::BTreeMap;
 
-use crate::sidecar::{BusScaling, Dimension, ScalingKind, Sidecar, Unit, UnitSystem};
+use crate::sidecar::{BusScaling, Dimension, ScalingKind, ScalingObject, Sidecar, Unit, UnitSpec, UnitSystem};
 use eds::diag::Severity;
 use eds::model::Model;
 use proc_macro2::{Ident, Literal, TokenStream};
@@ -172,8 +177,41 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sc: &Sidecar, sink: &mut Si
         return TokenStream::new();
     }
     let mut cx = Ctx { model, by_key: plan.entries.iter().map(|e| ((e.index, e.sub), e)).collect(), sink, ok: true };
+    let (units, dims) = units_and_dimensions(sc);
+    let systems = system_idents(sc);
+    let selection = system_selection(&mut cx, &systems);
+    let ratios = scaling_ratio_fns(&mut cx, sc);
+    let factors = system_factor_arms(&mut cx, &systems, &dims, &ratios);
+    let accessors = entry_accessors(&mut cx, plan, sc);
+    let bus = bus_scaling_items(plan, sc);
+    if !cx.ok {
+        return TokenStream::new();
+    }
+    let enums = enum_items(&units, &dims, &systems, &selection);
+    let values = value_items();
+    let units_type = units_struct(dims.len(), &factors);
+    let conversions = conversion_methods();
+    let own = device_methods(&ratios.fns, &accessors);
+    let rt = crate::support::rt();
+    quote! {
+        /// Physical units of the device's values, from its sidecar (see the od-codegen `units`
+        /// module docs for the arithmetic).
+        pub mod units {
+            #[doc(inline)]
+            pub use #rt::Ratio;
+            #enums
+            #values
+            #units_type
+            #conversions
+            #own
+            #bus
+        }
+    }
+}
 
-    // Units and dimensions used.
+/// The units and the dimensions the unit systems use, each sorted (the order of the generated
+/// enums and of the per-dimension slots).
+fn units_and_dimensions(sc: &Sidecar) -> (Vec<Unit>, Vec<Dimension>) {
     let mut units: Vec<Unit> = Vec::new();
     let mut dims: Vec<Dimension> = Vec::new();
     for s in &sc.unit_systems {
@@ -188,23 +226,33 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sc: &Sidecar, sink: &mut Si
     }
     dims.sort();
     units.sort();
-    let dim_index = |d: Dimension| dims.iter().position(|x| *x == d).unwrap_or(0);
-    let n_dims = Literal::usize_unsuffixed(dims.len());
+    (units, dims)
+}
 
-    // Systems.
-    let mut system_names = ident::Names::default();
-    let systems: Vec<(Ident, &UnitSystem)> = sc
-        .unit_systems
+/// Each unit system with the name of its `System` variant.
+fn system_idents(sc: &Sidecar) -> Vec<(Ident, &UnitSystem)> {
+    let mut names = ident::Names::default();
+    sc.unit_systems
         .iter()
         .map(|s| {
             let base = ident::camel(&s.name).unwrap_or_else(|| "System".to_owned());
-            (format_ident!("{}", system_names.claim(&base, &[]).0), s)
+            (format_ident!("{}", names.claim(&base, &[]).0), s)
         })
-        .collect();
+        .collect()
+}
 
-    // `when` conditions.
-    let mut active_arms = Vec::new();
-    for (id, s) in &systems {
+/// How `System::active` decides: one check per system with `when` conditions, in the
+/// sidecar's order, and the system to fall back on.
+struct Selection {
+    checks: Vec<TokenStream>,
+    default: Ident,
+}
+
+/// The `when` conditions as checks on the dictionary's values, and the default system (the
+/// first without conditions that is not external, else the first).
+fn system_selection(cx: &mut Ctx<'_, '_>, systems: &[(Ident, &UnitSystem)]) -> Selection {
+    let mut checks = Vec::new();
+    for (id, s) in systems {
         if s.when.is_empty() {
             continue;
         }
@@ -223,19 +271,47 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sc: &Sidecar, sink: &mut Si
                 });
             }
         }
-        active_arms.push(quote!(if #(#conds)&&* { return System::#id; }));
+        checks.push(quote!(if #(#conds)&&* { return System::#id; }));
     }
-    let default_system = systems
+    let default = systems
         .iter()
         .find(|(_, s)| s.when.is_empty() && s.external.is_none())
         .or_else(|| systems.first())
         .map(|(id, _)| id.clone())
         .unwrap_or_else(|| format_ident!("System"));
+    Selection { checks, default }
+}
 
-    // Scaling ratios read from the dictionary.
-    let mut ratio_fns = Vec::new();
-    let mut have_kind = Vec::new();
+/// The scaling objects' ratio functions, and what the factors need to know of each kind.
+struct Ratios<'s> {
+    fns: Vec<TokenStream>,
+    /// The kinds that have a function, with their scaling object.
+    objects: Vec<(ScalingKind, &'s ScalingObject)>,
+}
+
+impl Ratios<'_> {
+    fn object(&self, kind: ScalingKind) -> Option<&ScalingObject> {
+        self.objects.iter().find(|(k, _)| *k == kind).map(|(_, o)| *o)
+    }
+}
+
+/// One `Units::<kind>(od) -> Result<Ratio, UnitError>` per scaling object with a ratio:
+/// `upper / lower` of its two sub-indices, reduced; a zero term is an error, except for the
+/// gear ratio, where it counts as 1.
+fn scaling_ratio_fns<'s>(cx: &mut Ctx<'_, '_>, sc: &'s Sidecar) -> Ratios<'s> {
+    let mut ratios = Ratios { fns: Vec::new(), objects: Vec::new() };
     for so in &sc.scaling {
+        if so.feed_unit.is_some() && so.kind != ScalingKind::FeedConstant {
+            cx.sink.general(
+                Severity::Error,
+                diag::UNITS,
+                format!(
+                    "scaling object {} ({:?}) gives `feed_unit`, which only a feed_constant has",
+                    so.object, so.kind
+                ),
+            );
+            cx.ok = false;
+        }
         let Some((top, bottom)) = roles(so.kind) else { continue };
         let (Some(&ts), Some(&bs)) = (so.subs.get(top), so.subs.get(bottom)) else {
             cx.sink.general(
@@ -279,59 +355,151 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sc: &Sidecar, sink: &mut Si
             String::new(),
             lit::doc_escape(&so.formula),
         ]);
-        ratio_fns.push(quote! {
+        ratios.fns.push(quote! {
             #doc
             pub fn #name(od: &super::Dictionary) -> Result<Ratio, UnitError> {
                 #body
             }
         });
-        have_kind.push(so.kind);
+        ratios.objects.push((so.kind, so));
     }
+    ratios
+}
 
-    // Per-system, per-dimension factors.
+/// The length (or angle) a unit measures, per second and per second squared alike: what a
+/// feed constant's `feed_unit` must match. Units per minute (rpm) match nothing: the internal
+/// value is per second.
+fn length_of(u: Unit) -> Option<Unit> {
+    Some(match u {
+        Unit::Degree | Unit::DegreePerSecond | Unit::DegreePerSecond2 => Unit::Degree,
+        Unit::Millimeter | Unit::MillimeterPerSecond | Unit::MillimeterPerSecond2 => Unit::Millimeter,
+        Unit::Inch | Unit::InchPerSecond | Unit::InchPerSecond2 => Unit::Inch,
+        Unit::Increment | Unit::IncrementPerSecond | Unit::IncrementPerSecond2 => Unit::Increment,
+        Unit::Microstep | Unit::MicrostepPerSecond | Unit::MicrostepPerSecond2 => Unit::Microstep,
+        Unit::UserUnit | Unit::UserUnitPerSecond | Unit::UserUnitPerSecond2 => Unit::UserUnit,
+        Unit::Revolution => Unit::Revolution,
+        _ => return None,
+    })
+}
+
+/// `let #name = #name.checked_mul(#by).ok_or(UnitError::Overflow)?;`
+fn times(name: &str, by: TokenStream) -> TokenStream {
+    let n = format_ident!("{name}");
+    quote!(let #n = #n.checked_mul(#by).ok_or(UnitError::Overflow)?;)
+}
+
+/// The statements computing one dimension's factors in one system: `f`, physical value per
+/// raw unit, and, when the chain has an internal-side kind (the second value), `g`, internal
+/// value per raw unit. A chain that cannot be built leaves error diagnostics.
+fn dimension_factor(
+    cx: &mut Ctx<'_, '_>,
+    system: &UnitSystem,
+    d: Dimension,
+    spec: &UnitSpec,
+    ratios: &Ratios<'_>,
+) -> (Vec<TokenStream>, bool) {
+    let (sn, sd) = (lit::int(spec.scale.num as i128), lit::int(spec.scale.den as i128));
+    let mut steps = vec![quote!(let f = Ratio::new(#sn, #sd).ok_or(UnitError::Overflow)?;)];
+    let internal = spec.scaled_by.iter().any(|k| {
+        matches!(
+            k,
+            ScalingKind::FeedConstant
+                | ScalingKind::GearRatio
+                | ScalingKind::EncoderResolution
+                | ScalingKind::VelocityFactor
+        ) && ratios.object(*k).is_some()
+    });
+    if internal {
+        steps.push(quote!(let g = Ratio::ONE;));
+    }
+    for k in &spec.scaled_by {
+        let Some(so) = ratios.object(*k) else {
+            if *k != ScalingKind::ActuatorType {
+                cx.sink.general(
+                    Severity::Error,
+                    diag::UNITS,
+                    format!("unit system `{}` scales {d:?} by {k:?}, which no [[scaling]] object defines", system.name),
+                );
+                cx.ok = false;
+            }
+            continue;
+        };
+        let f = kind_fn(*k);
+        match k {
+            // The bus unit itself changes: raw × den / num is the value in the default unit,
+            // for the physical value and the internal one alike.
+            ScalingKind::FeedConverter => {
+                steps.push(quote!(let c = Self::#f(od)?.recip().ok_or(UnitError::Overflow)?;));
+                steps.push(times("f", quote!(c)));
+                if internal {
+                    steps.push(times("g", quote!(c)));
+                }
+            }
+            // Shaft revolutions = (physical value in the feed's unit) × shaft revolutions / feed.
+            ScalingKind::FeedConstant => steps.extend(feed_constant_steps(cx, system, d, spec, so)),
+            ScalingKind::ActuatorType => {}
+            _ => steps.push(times("g", quote!(Self::#f(od)?))),
+        }
+    }
+    (steps, internal)
+}
+
+/// The feed constant's steps of `g`: the dimension's fixed point expressed in the feed's unit
+/// (`scale / feed_unit`, checked to measure the same length), then `× shaft revolutions / feed`.
+fn feed_constant_steps(
+    cx: &mut Ctx<'_, '_>,
+    system: &UnitSystem,
+    d: Dimension,
+    spec: &UnitSpec,
+    so: &ScalingObject,
+) -> Vec<TokenStream> {
+    let feed_scale = match so.feed_unit {
+        Some(fu) => {
+            if length_of(spec.unit) != Some(fu.unit) {
+                cx.sink.general(
+                    Severity::Error,
+                    diag::UNITS,
+                    format!(
+                        "unit system `{}` scales {d:?} ({}) by a feed counted in {}: the lengths differ",
+                        system.name,
+                        unit_symbol(spec.unit),
+                        unit_symbol(fu.unit)
+                    ),
+                );
+                cx.ok = false;
+            }
+            fu.scale
+        }
+        None => crate::sidecar::Ratio::ONE,
+    };
+    let mut steps = Vec::new();
+    let n = i128::from(spec.scale.num) * i128::from(feed_scale.den);
+    let dn = i128::from(spec.scale.den) * i128::from(feed_scale.num);
+    if n != dn {
+        let (n, dn) = (lit::int(n), lit::int(dn));
+        steps.push(times("g", quote!(Ratio::new(#n, #dn).ok_or(UnitError::Overflow)?)));
+    }
+    let f = kind_fn(ScalingKind::FeedConstant);
+    steps.push(times("g", quote!(Self::#f(od)?.recip().ok_or(UnitError::Overflow)?)));
+    steps
+}
+
+/// One arm of `Units::with_system` per system: every dimension's prepared factor and unit,
+/// and its internal factor where the chain defines one.
+fn system_factor_arms(
+    cx: &mut Ctx<'_, '_>,
+    systems: &[(Ident, &UnitSystem)],
+    dims: &[Dimension],
+    ratios: &Ratios<'_>,
+) -> Vec<TokenStream> {
     let rt = crate::support::rt();
-    let mut system_arms = Vec::new();
-    for (id, s) in &systems {
+    let mut arms = Vec::new();
+    for (id, s) in systems {
         let mut inits = Vec::new();
         for (d, spec) in &s.units {
-            let i = Literal::usize_unsuffixed(dim_index(*d));
-            let (sn, sd) = (lit::int(spec.scale.num as i128), lit::int(spec.scale.den as i128));
-            let mut steps =
-                vec![quote!(let f = Ratio::new(#sn, #sd).ok_or(UnitError::Overflow)?;), quote!(let g = Ratio::ONE;)];
-            let mut internal = false;
-            for k in &spec.scaled_by {
-                if !have_kind.contains(k) {
-                    if *k != ScalingKind::ActuatorType {
-                        cx.sink.general(
-                            Severity::Error,
-                            diag::UNITS,
-                            format!(
-                                "unit system `{}` scales {:?} by {k:?}, which no [[scaling]] object defines",
-                                s.name, d
-                            ),
-                        );
-                        cx.ok = false;
-                    }
-                    continue;
-                }
-                let f = kind_fn(*k);
-                match k {
-                    ScalingKind::FeedConverter => steps.push(quote!(let f = f.checked_mul(Self::#f(od)?.recip().ok_or(UnitError::Overflow)?).ok_or(UnitError::Overflow)?;)),
-                    ScalingKind::FeedConstant => {
-                        internal = true;
-                        steps.push(quote!(let g = g.checked_mul(Self::#f(od)?.recip().ok_or(UnitError::Overflow)?).ok_or(UnitError::Overflow)?;))
-                    }
-                    ScalingKind::ActuatorType => {}
-                    _ => {
-                        internal = true;
-                        steps.push(quote!(let g = g.checked_mul(Self::#f(od)?).ok_or(UnitError::Overflow)?;))
-                    }
-                }
-            }
+            let i = Literal::usize_unsuffixed(dims.iter().position(|x| x == d).unwrap_or(0));
+            let (steps, internal) = dimension_factor(cx, s, *d, spec, ratios);
             let u = unit_ident(spec.unit);
-            if !internal {
-                steps.remove(1);
-            }
             let set_internal = if internal { quote!(internal[#i] = Some(g.reduced());) } else { TokenStream::new() };
             inits.push(quote! {
                 {
@@ -341,10 +509,13 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sc: &Sidecar, sink: &mut Si
                 }
             });
         }
-        system_arms.push(quote!(System::#id => { #(#inits)* }));
+        arms.push(quote!(System::#id => { #(#inits)* }));
     }
+    arms
+}
 
-    // Typed per-entry accessors.
+/// A typed getter and setter on `Units` for every entry the sidecar gives a dimension.
+fn entry_accessors(cx: &mut Ctx<'_, '_>, plan: &Plan<'_>, sc: &Sidecar) -> Vec<TokenStream> {
     let mut accessors = Vec::new();
     for (r, d) in &sc.dimensions {
         let targets: Vec<&PEntry<'_>> = match r.sub {
@@ -388,71 +559,77 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sc: &Sidecar, sink: &mut Si
             });
         }
     }
+    accessors
+}
 
-    // Bus scaling (AKD).
-    let bus = if sc.bus_scaling.is_empty() {
-        TokenStream::new()
-    } else {
-        let mut rows: Vec<(u32, u32)> = Vec::new();
-        for (r, b) in &sc.bus_scaling {
-            let subs: Vec<u8> = match r.sub {
-                Some(s) => vec![s],
-                None => {
-                    let v: Vec<u8> = plan.entries.iter().filter(|e| e.index == r.index).map(|e| e.sub).collect();
-                    if v.is_empty() { vec![0] } else { v }
-                }
-            };
-            for s in subs {
-                let f = match b {
-                    BusScaling::Factor(f) => *f,
-                    BusScaling::Variable => 0,
-                };
-                rows.push((((r.index as u32) << 8) | s as u32, f));
-            }
-        }
-        rows.sort();
-        rows.dedup_by_key(|r| r.0);
-        let n = Literal::usize_unsuffixed(rows.len());
-        let keys = rows.iter().map(|(k, _)| lit::hex(*k as u64, 6));
-        let facs = rows.iter().map(|(_, f)| Literal::u32_unsuffixed(*f));
-        quote! {
-            /// How a bus value relates to the vendor tool's value (`[bus_scaling]`).
-            #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-            pub enum BusScaling {
-                /// Bus value = tool value × factor.
-                Factor(u32),
-                /// Depends on other settings.
-                Variable,
-            }
-
-            static BUS_KEYS: [u32; #n] = [#(#keys),*];
-            static BUS_FACTORS: [u32; #n] = [#(#facs),*];
-
-            /// The bus scaling of an entry, if the sidecar lists it.
-            pub fn bus_scaling(index: u16, sub: u8) -> Option<BusScaling> {
-                let key = ((index as u32) << 8) | sub as u32;
-                let pos = BUS_KEYS.binary_search(&key).ok()?;
-                match BUS_FACTORS.get(pos)? {
-                    0 => Some(BusScaling::Variable),
-                    f => Some(BusScaling::Factor(*f)),
-                }
-            }
-
-            /// The vendor tool's value of a bus value (`raw / factor`, exact); `None` for
-            /// entries without a fixed factor.
-            pub fn to_workbench(index: u16, sub: u8, raw: i64) -> Option<Ratio> {
-                match bus_scaling(index, sub)? {
-                    BusScaling::Factor(f) => Ratio::new(raw as i128, f as i128),
-                    BusScaling::Variable => None,
-                }
-            }
-        }
-    };
-
-    if !cx.ok {
+/// With `[bus_scaling]` (AKD): the per-entry bus factors, `bus_scaling` and `to_workbench`.
+fn bus_scaling_items(plan: &Plan<'_>, sc: &Sidecar) -> TokenStream {
+    if sc.bus_scaling.is_empty() {
         return TokenStream::new();
     }
+    let mut rows: Vec<(u32, u32)> = Vec::new();
+    for (r, b) in &sc.bus_scaling {
+        let subs: Vec<u8> = match r.sub {
+            Some(s) => vec![s],
+            None => {
+                let v: Vec<u8> = plan.entries.iter().filter(|e| e.index == r.index).map(|e| e.sub).collect();
+                if v.is_empty() { vec![0] } else { v }
+            }
+        };
+        for s in subs {
+            let f = match b {
+                BusScaling::Factor(f) => *f,
+                BusScaling::Variable => 0,
+            };
+            rows.push((((r.index as u32) << 8) | s as u32, f));
+        }
+    }
+    rows.sort();
+    rows.dedup_by_key(|r| r.0);
+    let n = Literal::usize_unsuffixed(rows.len());
+    let keys = rows.iter().map(|(k, _)| lit::hex(*k as u64, 6));
+    let facs = rows.iter().map(|(_, f)| Literal::u32_unsuffixed(*f));
+    quote! {
+        /// How a bus value relates to the vendor tool's value (`[bus_scaling]`).
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        pub enum BusScaling {
+            /// Bus value = tool value × factor.
+            Factor(u32),
+            /// Depends on other settings.
+            Variable,
+        }
 
+        static BUS_KEYS: [u32; #n] = [#(#keys),*];
+        static BUS_FACTORS: [u32; #n] = [#(#facs),*];
+
+        /// The bus scaling of an entry, if the sidecar lists it.
+        pub fn bus_scaling(index: u16, sub: u8) -> Option<BusScaling> {
+            let key = ((index as u32) << 8) | sub as u32;
+            let pos = BUS_KEYS.binary_search(&key).ok()?;
+            match BUS_FACTORS.get(pos)? {
+                0 => Some(BusScaling::Variable),
+                f => Some(BusScaling::Factor(*f)),
+            }
+        }
+
+        /// The vendor tool's value of a bus value (`raw / factor`, exact); `None` for
+        /// entries without a fixed factor.
+        pub fn to_workbench(index: u16, sub: u8, raw: i64) -> Option<Ratio> {
+            match bus_scaling(index, sub)? {
+                BusScaling::Factor(f) => Ratio::new(raw as i128, f as i128),
+                BusScaling::Variable => None,
+            }
+        }
+    }
+}
+
+/// The `Unit`, `Dimension` and `System` enums, with `System::active`.
+fn enum_items(
+    units: &[Unit],
+    dims: &[Dimension],
+    systems: &[(Ident, &UnitSystem)],
+    selection: &Selection,
+) -> TokenStream {
     let unit_variants = units.iter().map(|u| {
         let id = unit_ident(*u);
         let doc = format!(" `{}`", unit_symbol(*u));
@@ -490,199 +667,245 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sc: &Sidecar, sink: &mut Si
         let n = &s.name;
         quote!(System::#id => #n)
     });
-
+    let checks = &selection.checks;
+    let default_system = &selection.default;
     quote! {
-        /// Physical units of the device's values, from its sidecar (see the od-codegen `units`
-        /// module docs for the arithmetic).
-        pub mod units {
-            #[doc(inline)]
-            pub use #rt::Ratio;
+        /// A physical unit.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum Unit { #(#unit_variants,)* }
 
-            /// A physical unit.
-            #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-            pub enum Unit { #(#unit_variants,)* }
+        impl Unit {
+            /// The unit's symbol.
+            pub const fn symbol(self) -> &'static str {
+                match self { #(#unit_symbols,)* }
+            }
+        }
 
-            impl Unit {
-                /// The unit's symbol.
-                pub const fn symbol(self) -> &'static str {
-                    match self { #(#unit_symbols,)* }
+        /// A physical dimension.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum Dimension { #(#dim_variants,)* }
+
+        impl Dimension {
+            const fn slot(self) -> usize {
+                match self { #(#dim_arms,)* }
+            }
+        }
+
+        /// A unit configuration of the device.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum System { #(#system_variants,)* }
+
+        impl System {
+            /// The sidecar's name of the system.
+            pub const fn name(self) -> &'static str {
+                match self { #(#system_name_arms,)* }
+            }
+
+            /// The system the dictionary's current values select (the first whose conditions
+            /// hold, else the default one; external systems only by explicit choice).
+            pub fn active(od: &super::Dictionary) -> System {
+                let _ = od;
+                #(#checks)*
+                System::#default_system
+            }
+        }
+    }
+}
+
+/// `UnitError` and `Quantity`: the same for every device.
+fn value_items() -> TokenStream {
+    quote! {
+        /// Why a conversion failed.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        pub enum UnitError {
+            /// A scaling object holds 0 where it divides.
+            ZeroFactor {
+                /// The scaling object.
+                index: u16,
+            },
+            /// An intermediate or final value does not fit.
+            Overflow,
+            /// The dimension has no unit in the active system.
+            NoUnit,
+            /// The quantity's unit is not the system's unit for the dimension.
+            WrongUnit {
+                /// The system's unit.
+                expected: Unit,
+                /// The quantity's unit.
+                got: Unit,
+            },
+            /// The raw value does not fit the entry's type.
+            OutOfRange,
+            /// The dictionary refused the value (limits).
+            Rejected(::od_runtime::od::AbortCode),
+        }
+
+        /// An exact physical value.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        pub struct Quantity {
+            /// The value.
+            pub value: Ratio,
+            /// Its unit.
+            pub unit: Unit,
+        }
+
+        impl Quantity {
+            /// `value` in `unit`.
+            pub const fn new(value: Ratio, unit: Unit) -> Self {
+                Quantity { value, unit }
+            }
+
+            /// An integer value in `unit`.
+            pub const fn int(value: i64, unit: Unit) -> Self {
+                Quantity { value: Ratio::int(value), unit }
+            }
+
+            /// The nearest `f64` (for display; conversions stay exact).
+            pub fn to_f64(self) -> f64 {
+                self.value.to_f64()
+            }
+        }
+    }
+}
+
+/// `Units`: the conversions of one configured device, built per system by `system_arms`, and
+/// what it says about each dimension (unit, factor, internal factor).
+fn units_struct(n_dims: usize, system_arms: &[TokenStream]) -> TokenStream {
+    let rt = crate::support::rt();
+    let n_dims = Literal::usize_unsuffixed(n_dims);
+    quote! {
+        /// The conversions of one configured device.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        pub struct Units {
+            system: System,
+            /// Physical value per raw unit (prepared for fast exact conversions both ways),
+            /// and the physical unit, per dimension.
+            factor: [Option<(#rt::Scale, Unit)>; #n_dims],
+            /// Internal value (increments or motor revolutions) per raw unit, per dimension.
+            internal: [Option<Ratio>; #n_dims],
+        }
+
+        impl Units {
+            /// The conversions for the system the dictionary selects.
+            pub fn from_dictionary(od: &super::Dictionary) -> Result<Units, UnitError> {
+                Self::with_system(System::active(od), od)
+            }
+
+            /// The conversions for `system`, with the scaling objects' current values.
+            pub fn with_system(system: System, od: &super::Dictionary) -> Result<Units, UnitError> {
+                let _ = od;
+                let mut factor = [None; #n_dims];
+                let mut internal = [None; #n_dims];
+                match system { #(#system_arms)* }
+                let _ = &mut internal;
+                Ok(Units { system, factor, internal })
+            }
+
+            /// The unit system.
+            pub const fn system(&self) -> System {
+                self.system
+            }
+
+            /// The unit of a dimension in this configuration.
+            pub fn unit(&self, d: Dimension) -> Option<Unit> {
+                self.factor.get(d.slot()).copied().flatten().map(|(_, u)| u)
+            }
+
+            /// Physical value per raw unit (exact, reduced).
+            pub fn factor(&self, d: Dimension) -> Option<Ratio> {
+                self.factor.get(d.slot()).copied().flatten().map(|(f, _)| f.factor())
+            }
+
+            /// Internal value (encoder increments, or motor revolutions) per raw unit, where
+            /// the system's scaling objects define one.
+            pub fn internal_factor(&self, d: Dimension) -> Option<Ratio> {
+                self.internal.get(d.slot()).copied().flatten()
+            }
+        }
+    }
+}
+
+/// The conversions of `Units`: raw to physical and back, raw to internal and back, internal to
+/// physical. The same for every device.
+fn conversion_methods() -> TokenStream {
+    let rt = crate::support::rt();
+    quote! {
+        impl Units {
+            /// `raw × factor`, exact.
+            #[inline]
+            pub fn to_physical(&self, d: Dimension, raw: i64) -> Result<Quantity, UnitError> {
+                let Some(Some((f, unit))) = self.factor.get(d.slot()) else {
+                    return Err(UnitError::NoUnit);
+                };
+                Ok(Quantity { value: f.to_physical(raw).ok_or(UnitError::Overflow)?, unit: *unit })
+            }
+
+            /// The prepared factor for converting `q` in dimension `d`.
+            #[inline]
+            fn scale_for(&self, d: Dimension, q: &Quantity) -> Result<&#rt::Scale, UnitError> {
+                match self.factor.get(d.slot()) {
+                    Some(Some((f, unit))) if *unit == q.unit => Ok(f),
+                    Some(Some((_, unit))) => Err(UnitError::WrongUnit { expected: *unit, got: q.unit }),
+                    _ => Err(UnitError::NoUnit),
                 }
             }
 
-            /// A physical dimension.
-            #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-            pub enum Dimension { #(#dim_variants,)* }
-
-            impl Dimension {
-                const fn slot(self) -> usize {
-                    match self { #(#dim_arms,)* }
-                }
+            /// `q / factor`, exact (may be fractional).
+            pub fn to_raw_exact(&self, d: Dimension, q: Quantity) -> Result<Ratio, UnitError> {
+                self.scale_for(d, &q)?.to_raw_exact(q.value).ok_or(UnitError::Overflow)
             }
 
-            /// A unit configuration of the device.
-            #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-            pub enum System { #(#system_variants,)* }
-
-            impl System {
-                /// The sidecar's name of the system.
-                pub const fn name(self) -> &'static str {
-                    match self { #(#system_name_arms,)* }
-                }
-
-                /// The system the dictionary's current values select (the first whose conditions
-                /// hold, else the default one; external systems only by explicit choice).
-                pub fn active(od: &super::Dictionary) -> System {
-                    let _ = od;
-                    #(#active_arms)*
-                    System::#default_system
-                }
+            /// `q / factor` rounded to the nearest integer, halves away from zero.
+            ///
+            /// Integer and decimal quantities (denominators up to 10^6) convert without a
+            /// division instruction; always inlined, so a loop converting many values keeps
+            /// the prepared factor in registers (the rare general paths stay out of line).
+            #[inline(always)]
+            pub fn to_raw(&self, d: Dimension, q: Quantity) -> Result<i64, UnitError> {
+                self.scale_for(d, &q)?.to_raw_i64(q.value).ok_or(UnitError::Overflow)
             }
 
-            /// Why a conversion failed.
-            #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-            pub enum UnitError {
-                /// A scaling object holds 0 where it divides.
-                ZeroFactor {
-                    /// The scaling object.
-                    index: u16,
-                },
-                /// An intermediate or final value does not fit.
-                Overflow,
-                /// The dimension has no unit in the active system.
-                NoUnit,
-                /// The quantity's unit is not the system's unit for the dimension.
-                WrongUnit {
-                    /// The system's unit.
-                    expected: Unit,
-                    /// The quantity's unit.
-                    got: Unit,
-                },
-                /// The raw value does not fit the entry's type.
-                OutOfRange,
-                /// The dictionary refused the value (limits).
-                Rejected(::od_runtime::od::AbortCode),
+            /// `raw × internal factor`, exact: encoder increments (or motor revolutions).
+            pub fn to_internal(&self, d: Dimension, raw: i64) -> Result<Ratio, UnitError> {
+                let g = self.internal.get(d.slot()).copied().flatten().ok_or(UnitError::NoUnit)?;
+                g.checked_mul_int(raw).ok_or(UnitError::Overflow)
             }
 
-            /// An exact physical value.
-            #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-            pub struct Quantity {
-                /// The value.
-                pub value: Ratio,
-                /// Its unit.
-                pub unit: Unit,
+            /// `internal / internal factor`, exact (may be fractional): the raw value of an
+            /// internal one (encoder increments, or motor revolutions).
+            pub fn internal_to_raw_exact(&self, d: Dimension, internal: Ratio) -> Result<Ratio, UnitError> {
+                let g = self.internal.get(d.slot()).copied().flatten().ok_or(UnitError::NoUnit)?;
+                internal.checked_div(g).ok_or(UnitError::Overflow)
             }
 
-            impl Quantity {
-                /// `value` in `unit`.
-                pub const fn new(value: Ratio, unit: Unit) -> Self {
-                    Quantity { value, unit }
-                }
-
-                /// An integer value in `unit`.
-                pub const fn int(value: i64, unit: Unit) -> Self {
-                    Quantity { value: Ratio::int(value), unit }
-                }
-
-                /// The nearest `f64` (for display; conversions stay exact).
-                pub fn to_f64(self) -> f64 {
-                    self.value.to_f64()
-                }
+            /// `internal / internal factor` rounded to the nearest integer, halves away from
+            /// zero: the raw value the device shows for an internal one.
+            pub fn internal_to_raw(&self, d: Dimension, internal: Ratio) -> Result<i64, UnitError> {
+                let raw = self.internal_to_raw_exact(d, internal)?;
+                i64::try_from(raw.round()).map_err(|_| UnitError::Overflow)
             }
 
-            /// The conversions of one configured device.
-            #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-            pub struct Units {
-                system: System,
-                /// Physical value per raw unit (prepared for fast exact conversions both ways),
-                /// and the physical unit, per dimension.
-                factor: [Option<(#rt::Scale, Unit)>; #n_dims],
-                /// Internal value (increments or motor revolutions) per raw unit, per dimension.
-                internal: [Option<Ratio>; #n_dims],
+            /// `internal / internal factor × factor`, exact: the physical value of an internal
+            /// one (how far the load moves for so many motor revolutions).
+            pub fn internal_to_physical(&self, d: Dimension, internal: Ratio) -> Result<Quantity, UnitError> {
+                let raw = self.internal_to_raw_exact(d, internal)?;
+                let Some(Some((f, unit))) = self.factor.get(d.slot()) else {
+                    return Err(UnitError::NoUnit);
+                };
+                Ok(Quantity { value: raw.checked_mul(f.factor()).ok_or(UnitError::Overflow)?.reduced(), unit: *unit })
             }
+        }
+    }
+}
 
-            impl Units {
-                /// The conversions for the system the dictionary selects.
-                pub fn from_dictionary(od: &super::Dictionary) -> Result<Units, UnitError> {
-                    Self::with_system(System::active(od), od)
-                }
+/// The device's own methods of `Units`: one ratio function per scaling object and a typed
+/// getter and setter per dimensioned entry.
+fn device_methods(ratio_fns: &[TokenStream], accessors: &[TokenStream]) -> TokenStream {
+    quote! {
+        impl Units {
+            #(#ratio_fns)*
 
-                /// The conversions for `system`, with the scaling objects' current values.
-                pub fn with_system(system: System, od: &super::Dictionary) -> Result<Units, UnitError> {
-                    let _ = od;
-                    let mut factor = [None; #n_dims];
-                    let mut internal = [None; #n_dims];
-                    match system { #(#system_arms)* }
-                    let _ = &mut internal;
-                    Ok(Units { system, factor, internal })
-                }
-
-                /// The unit system.
-                pub const fn system(&self) -> System {
-                    self.system
-                }
-
-                /// The unit of a dimension in this configuration.
-                pub fn unit(&self, d: Dimension) -> Option<Unit> {
-                    self.factor.get(d.slot()).copied().flatten().map(|(_, u)| u)
-                }
-
-                /// Physical value per raw unit (exact, reduced).
-                pub fn factor(&self, d: Dimension) -> Option<Ratio> {
-                    self.factor.get(d.slot()).copied().flatten().map(|(f, _)| f.factor())
-                }
-
-                /// Internal value (encoder increments, or motor revolutions) per raw unit, where
-                /// the system's scaling objects define one.
-                pub fn internal_factor(&self, d: Dimension) -> Option<Ratio> {
-                    self.internal.get(d.slot()).copied().flatten()
-                }
-
-                /// `raw × factor`, exact.
-                #[inline]
-                pub fn to_physical(&self, d: Dimension, raw: i64) -> Result<Quantity, UnitError> {
-                    let Some(Some((f, unit))) = self.factor.get(d.slot()) else {
-                        return Err(UnitError::NoUnit);
-                    };
-                    Ok(Quantity { value: f.to_physical(raw).ok_or(UnitError::Overflow)?, unit: *unit })
-                }
-
-                /// The prepared factor for converting `q` in dimension `d`.
-                #[inline]
-                fn scale_for(&self, d: Dimension, q: &Quantity) -> Result<&#rt::Scale, UnitError> {
-                    match self.factor.get(d.slot()) {
-                        Some(Some((f, unit))) if *unit == q.unit => Ok(f),
-                        Some(Some((_, unit))) => Err(UnitError::WrongUnit { expected: *unit, got: q.unit }),
-                        _ => Err(UnitError::NoUnit),
-                    }
-                }
-
-                /// `q / factor`, exact (may be fractional).
-                pub fn to_raw_exact(&self, d: Dimension, q: Quantity) -> Result<Ratio, UnitError> {
-                    self.scale_for(d, &q)?.to_raw_exact(q.value).ok_or(UnitError::Overflow)
-                }
-
-                /// `q / factor` rounded to the nearest integer, halves away from zero.
-                ///
-                /// Integer and decimal quantities (denominators up to 10^6) convert without a
-                /// division instruction; always inlined, so a loop converting many values keeps
-                /// the prepared factor in registers (the rare general paths stay out of line).
-                #[inline(always)]
-                pub fn to_raw(&self, d: Dimension, q: Quantity) -> Result<i64, UnitError> {
-                    self.scale_for(d, &q)?.to_raw_i64(q.value).ok_or(UnitError::Overflow)
-                }
-
-                /// `raw × internal factor`, exact: encoder increments (or motor revolutions).
-                pub fn to_internal(&self, d: Dimension, raw: i64) -> Result<Ratio, UnitError> {
-                    let g = self.internal.get(d.slot()).copied().flatten().ok_or(UnitError::NoUnit)?;
-                    g.checked_mul_int(raw).ok_or(UnitError::Overflow)
-                }
-
-                #(#ratio_fns)*
-
-                #(#accessors)*
-            }
-
-            #bus
+            #(#accessors)*
         }
     }
 }

@@ -543,9 +543,27 @@ pub struct ScalingObject {
     /// The dimensions it affects.
     #[serde(default)]
     pub applies_to: Vec<Dimension>,
+    /// `feed_constant` only: the unit the feed (sub `feed`) counts in, when it is not one unit
+    /// of the unit system's position dimension (the DRVI's 6092h counts in 0.01 mm:
+    /// `{ unit = "mm", scale = "1/100" }`). A dimension's motor revolutions are then
+    /// `physical / (feed × scale) × shaft revolutions`, with `unit` the length of the
+    /// dimension's unit (mm for mm, mm/s and mm/s^2).
+    #[serde(default)]
+    pub feed_unit: Option<FeedUnit>,
     /// Manual reference and remarks.
     #[serde(default)]
     pub note: Option<String>,
+}
+
+/// The unit a feed constant counts in: `scale` of `unit` (see [`ScalingObject::feed_unit`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FeedUnit {
+    /// A length (or angle) unit: `mm`, `in`, `deg`, `user`, ...
+    pub unit: Unit,
+    /// How many of `unit` one count of the feed is (`"1/100"`: hundredths).
+    #[serde(default)]
+    pub scale: Ratio,
 }
 
 /// AKD per-object bus scaling: bus value = WorkBench value × factor.

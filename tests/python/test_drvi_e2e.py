@@ -177,16 +177,21 @@ def test_absolute_and_relative_moves_in_degrees(drvi):
     assert units.to_physical("position", node.sdo[0x6064].raw) == pytest.approx(720.0)
     move(node, units.to_bus("position", -180), relative=True)
     assert units.to_physical("position", node.sdo[0x6064].raw) == pytest.approx(540.0)
-    # Inches on a custom actuator: 2014h = 7 (mm), 2001h = 100/254 (6.3.6.1).
+    # Inches on a custom actuator: 2014h = 7 (mm) on a 10 mm screw (6092h = 1000/1: feed =
+    # 100 x pitch, 6.3.4.23), 2001h = 100/254 (6.3.6.1).
     node.sdo[0x2014].raw = 7
+    node.sdo[0x6092][1].raw = 1000
     node.sdo[0x2001][1].raw = 100
     node.sdo[0x2001][2].raw = 254
     inch = Units(node)
     assert inch.system == "actuator" and inch.unit("position") == "mm"
-    # The axis stands where it stood, 54000 internal units: 540 mm in the actuator system,
-    # read in 0.001 in.
-    assert node.sdo[0x6064].raw == round(54000 * 100 / 254)
-    move(node, inch.to_bus("position", 25.4))  # 25.4 mm
+    # The motor stands where it stood, 540 deg = 1.5 turns: 15 mm on the 10 mm screw, read in
+    # 0.001 in.
+    assert node.sdo[0x6064].raw == round(1500 * 100 / 254)
+    node.sdo[0x6081].raw = inch.to_bus("velocity", 25.4)  # 1 in/s
+    node.sdo[0x6083].raw = inch.to_bus("acceleration", 254)
+    node.sdo[0x6084].raw = inch.to_bus("acceleration", 254)
+    move(node, inch.to_bus("position", 25.4))  # 25.4 mm: 2.54 motor turns
     assert inch.to_physical("position", node.sdo[0x6064].raw) == pytest.approx(25.4, abs=0.0254)
     assert node.sdo[0x6064].raw == 1000  # 0.001 in per bus unit (the sidecar's reading of the example)
 
@@ -257,9 +262,11 @@ def test_jog_with_controlword_bits_5_and_6(drvi):
 
 
 def limit_violation(node):
-    """Actuator configuration, limits 0..100 mm after homing, then a velocity move through the
-    maximum: the drive quick-stops into Fault with EMCY 6120h."""
+    """Actuator configuration (a belt of 100 mm a motor turn: 6092h = 10000/1, 6.3.4.23, so
+    the preset's end stops lie far beyond), limits 0..100 mm after homing, then a velocity move
+    through the maximum: the drive quick-stops into Fault with EMCY 6120h."""
     node.sdo[0x2014].raw = 7
+    node.sdo[0x6092][1].raw = 10_000
     home_here(node)
     node.sdo[0x607D][1].raw = 0
     node.sdo[0x607D][2].raw = 10_000  # 100 mm

@@ -231,9 +231,11 @@ pub fn run(options: &DemoOptions, out: &mut dyn Write) -> Result<DemoReport, Dem
         String::from_utf8_lossy(&name)
     ))?;
 
-    // The master's copy of the unit configuration: 2014h and 2001h as the drive has them.
+    // The master's copy of the unit configuration: 2014h, 2001h, 6091h and 6092h as the drive
+    // has them.
     let mut mirror = Dictionary::new(id);
-    for (index, sub) in [(0x2014u16, 0u8), (0x2001, 1), (0x2001, 2)] {
+    for (index, sub) in [(0x2014u16, 0u8), (0x2001, 1), (0x2001, 2), (0x6091, 1), (0x6091, 2), (0x6092, 1), (0x6092, 2)]
+    {
         let v = sdo("unit configuration", d.m.read(id, index, sub))?;
         let _ = mirror.write(index, sub, &v);
     }

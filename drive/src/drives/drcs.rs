@@ -202,8 +202,7 @@ impl Mechanics {
             }
             Travel::Linear => {
                 let belt = Self::actuator();
-                let mm_per_turn = f64::from(belt.feed_constant.0) / f64::from(belt.feed_constant.1);
-                let environment = machine.environment(unit, mm_per_turn);
+                let environment = machine.environment(unit, belt.mm_per_motor_turn());
                 let full_scale = machine.stroke.map(|s| (s * unit).round() as i64);
                 // A search may have to cross the whole travel: between the end stops, else the
                 // stroke, else the belt's.
@@ -214,6 +213,13 @@ impl Mechanics {
                 Self { full_scale, environment, homing_stroke: travel, inertia_factor, ..belt }
             }
         }
+    }
+
+    /// Millimetres of the actuator per motor turn: 6092h feed / shaft revolutions over 6091h
+    /// motor / shaft revolutions (3.4.20, 3.4.21; a zero term counts as 1).
+    pub fn mm_per_motor_turn(&self) -> f64 {
+        let r = |(a, b): (u32, u32)| f64::from(a.max(1)) / f64::from(b.max(1));
+        r(self.feed_constant) / r(self.gear_ratio)
     }
 
     /// Internal units per motor revolution, from 6091h and 6092h as the dictionary holds them

@@ -4,8 +4,9 @@
 //! | manual | behaviour | here |
 //! |---|---|---|
 //! | Table 6.17 | modes 1, 3, 4, 6, -1 (jog) | [`Vendor::supports_mode`] |
-//! | Table 6.2, 6.3.6.10 | units: 2014h = 0 "only motor" 0.01°, 0.01 rpm, rpm/s; otherwise 0.01 mm, 0.01 mm/s, mm/s²; mA, mA/s | [`Vendor::configure`] sets the axis' unit relations; switching 2014h switches them |
-//! | 6.3.6.1 | feed converter 2001h: new unit = default × num / den for positions, speeds, accelerations, on SDO and PDOs alike | [`Vendor::scale`] |
+//! | Table 6.2, 6.3.6.10 | units: 2014h = 0 "only motor" 0.01°, 0.01 rpm, rpm/s; otherwise 0.01 mm, 0.01 mm/s, mm/s²; mA, mA/s | [`Vendor::scale`] turns them into the axis' counts; switching 2014h switches them |
+//! | 6.3.6.1 | feed converter 2001h: new unit = default × num / den for positions, speeds, accelerations, on SDO and PDOs alike; 0 refused | [`Vendor::scale`] |
+//! | 6.3.4.22, 6.3.4.23, 7.5.1 | an actuator (2014h ≠ 0) turns the motor through the screw pitch 6092h (feed / shaft revolutions, × 100: 100/1 = 1 mm per turn) and the gear 6091h (motor / shaft revolutions; the default 0/0 is 1:1): positions, velocities, accelerations, targets, actual values, limits; a change shows in the actual values at once; 0 in 6092h refused | [`actuator_scale`] |
 //! | 4.1.2, 6.4 | profile position: bit 4 starts, bit 6 relative to the *actual* position; the target cannot change during a movement (refused, warning "command refused"); homing is mandatory first (refused, warning "homing missing") | [`Vendor::before_command`] |
 //! | 4.1.1, 6.5 | profile velocity: bit 12 speed = standing (606Fh/6070h), bit 10 with halt | common layer |
 //! | 4.1.3, 6.6, 5.0.2 | profile torque with 6087h; 2015h = 1 limits \|current\| to \|6071h\| in every mode; statusword bit 14 = torque limit active | [`Vendor::configure`], [`Vendor::statusword`] |
@@ -22,6 +23,13 @@
 //! | 5.0.3 | the position survives a reset node, and a power cycle (a restart of the process), when homed and stopped | [`SavedPosition`] kept as the node's retained data ([`Ctx::retain`]: the state directory's `drvi-node<id>.retained`), restored in [`Vendor::init`] |
 //!
 //! Decisions where the manual is silent or unclear:
+//! * the axis counts 0.01° of the motor in every configuration, and a machine's positions are
+//!   in that unit (the 6064h unit at power-on, 2014h = 0): an actuator shows them through
+//!   6092h and 6091h ([`actuator_scale`]), so a change of the screw pitch moves nothing, it
+//!   changes what 6064h reads. The gear ratio applies to the actuator configuration only
+//!   (7.5.1 names it with the screw pitch); only motor counts motor degrees. With more than
+//!   360 mm of travel a motor turn (7.5.1 allows 2000), a count is more than 0.01 mm: targets
+//!   go to the nearest count, and 6064h moves in steps of more than one.
 //! * the machine: the DRVI starts as a bare motor turning freely ([`app`], the `free` machine
 //!   of [`super::machine`]), as its default 2014h = 0 ("only motor", 6.3.6.10) says; a
 //!   Camozzi actuator with the PROXY INPUT proximity and end stops is the `drvi-actuator`
@@ -39,7 +47,7 @@
 //!   2 s at twice that current.
 
 use od_runtime::Event;
-use od_runtime::od::ObjectDictionary;
+use od_runtime::od::{AbortCode, ObjectDictionary};
 
 use super::cia402::{BusScale, Cia402App, Command, Vendor, read_int, write_int};
 use super::{Drive, error_table};
@@ -47,7 +55,7 @@ use crate::motion::{
     Axis, AxisConfig, Cam, CommandError, Environment, HomingMethod, HomingState, Machine, Mode, PlantConfig, Ratio,
     RelativeBase, SoftwareLimits, Status, Units,
 };
-use crate::node::{Ctx, DeviceKind};
+use crate::node::{Ctx, DeviceKind, WriteRequest};
 
 /// The current of the motor's I²T rating, mA: 2013h is a percentage of it.
 pub const I2T_CURRENT_MA: u32 = 5_000;
@@ -246,7 +254,7 @@ pub struct Drvi {
 pub struct SavedPosition {
     /// Homed and standing: the position may be restored.
     pub valid: bool,
-    /// The actual position (6064h in the default unit, 0.01° or 0.01 mm).
+    /// The actual position in the drive's counts (0.01° of the motor).
     pub position: i32,
     /// The motor's own position (the mechanical frame of the simulated machine).
     pub motor: i64,
@@ -331,14 +339,97 @@ impl Default for Drvi {
     }
 }
 
-/// Internal position counts per machine unit: the DRVI counts in its bus unit (0.01° or
-/// 0.01 mm).
+/// Internal position counts per machine unit: the axis counts 0.01° of the motor in every
+/// configuration, and a machine's positions are in the unit 6064h shows at power-on with the
+/// default parameters (2014h = 0, only motor: 0.01°).
 pub const COUNTS_PER_MACHINE_UNIT: f64 = 1.0;
 
 /// Machine units per motor turn (36 000 × 0.01°): the default index period.
 pub const MACHINE_UNITS_PER_TURN: f64 = 36_000.0;
 
-/// The mechanics of the `drvi-actuator` preset, in the default units (0.01° or 0.01 mm): a
+/// Internal counts per motor turn: 0.01° (Table 6.2, only motor).
+pub const COUNTS_PER_TURN: i64 = 36_000;
+
+/// 2014h = 0: only motor (6.3.6.10); any other value is an actuator (Table 6.2 (**)).
+fn only_motor<OD: ObjectDictionary + ?Sized>(od: &OD) -> bool {
+    read_int(od, 0x2014, 0).unwrap_or(0) == 0
+}
+
+/// A term of 2001h, 6091h or 6092h as the drive uses it: a 0 (6091h's printed default 0/0; a
+/// 0 in 2001h or 6092h, which the drive refuses over the bus, can only come from a parameter
+/// file) counts as 1.
+fn term<OD: ObjectDictionary + ?Sized>(od: &OD, index: u16, sub: u8) -> u64 {
+    read_int(od, index, sub).filter(|v| *v > 0).map_or(1, |v| v.unsigned_abs())
+}
+
+fn gcd(mut a: u128, mut b: u128) -> u128 {
+    while b != 0 {
+        (a, b) = (b, a % b);
+    }
+    a
+}
+
+/// `num / den` (both ≥ 1) as the motion model's ratio: in lowest terms, exact when both terms
+/// then fit an `i64`. Otherwise (only for 6091h/6092h/2001h terms far beyond any screw: the
+/// product of three 32-bit terms) the last convergent of its continued fraction whose terms
+/// fit, a relative error below 2^-63; a ratio beyond the `i64` range is `i64::MAX` (or its
+/// inverse), which saturates every value as the exact one would.
+pub fn fit(num: u128, den: u128) -> Ratio {
+    let (num, den) = (num.max(1), den.max(1));
+    let g = gcd(num, den);
+    let (num, den) = (num / g, den / g);
+    let max = i64::MAX as u128;
+    if num <= max && den <= max {
+        return Ratio::new(num as i64, den as i64);
+    }
+    // Convergents p/q of num/den: p₋₁/q₋₁ = 1/0, p₋₂/q₋₂ = 0/1.
+    let (mut p0, mut q0, mut p1, mut q1) = (0u128, 1u128, 1u128, 0u128);
+    let (mut n, mut d) = (num, den);
+    while d != 0 {
+        let a = n / d;
+        let next =
+            a.checked_mul(p1).and_then(|x| x.checked_add(p0)).zip(a.checked_mul(q1).and_then(|x| x.checked_add(q0)));
+        match next {
+            Some((p2, q2)) if p2 <= max && q2 <= max => {
+                (p0, q0, p1, q1) = (p1, q1, p2, q2);
+                (n, d) = (d, n - a * d);
+            }
+            _ => break,
+        }
+    }
+    match (p1, q1) {
+        (_, 0) => Ratio::new(i64::MAX, 1),
+        (0, _) => Ratio::new(1, i64::MAX),
+        (p, q) => Ratio::new(p as i64, q as i64),
+    }
+}
+
+/// The actuator configuration (2014h ≠ 0): counts (0.01° of the motor) per bus unit.
+///
+/// 6092h gives the screw pitch as feed / shaft revolutions in 0.01 mm (6.3.4.23: pitch 1 mm is
+/// feed 100 over 1 revolution), 6091h the motor revolutions per shaft revolution (6.3.4.22),
+/// 2001h the bus unit (6.3.6.1: bus value = default value × numerator / denominator). So a
+/// bus position `p` is `p × den₂₀₀₁/num₂₀₀₁` hundredths of a mm, `× shaft/feed` shaft turns,
+/// `× motor/shaft` motor turns, `× 36 000` counts:
+///
+/// * position (0.01 mm) and velocity (0.01 mm/s): `36 000 × den₂₀₀₁ × motor₆₀₉₁ × shaft₆₀₉₂ /
+///   (num₂₀₀₁ × shaft₆₀₉₁ × feed₆₀₉₂)` counts (per second);
+/// * acceleration (mm/s², Table 6.2): 100 times that, counts per second².
+///
+/// Exact (rounded half away from zero per value, as every bus conversion) whenever the reduced
+/// ratio fits 64 bits ([`fit`]). The generated `drvi::units` says the same
+/// (`Units::internal_factor` = motor revolutions per bus unit); tests hold the two together.
+pub fn actuator_scale<OD: ObjectDictionary + ?Sized>(od: &OD) -> BusScale {
+    let num = u128::from(term(od, 0x2001, 2))
+        * COUNTS_PER_TURN as u128
+        * u128::from(term(od, 0x6091, 1))
+        * u128::from(term(od, 0x6092, 2));
+    let den = u128::from(term(od, 0x2001, 1)) * u128::from(term(od, 0x6091, 2)) * u128::from(term(od, 0x6092, 1));
+    let r = fit(num, den);
+    BusScale { position: r, velocity: r, acceleration: fit(num * 100, den), ..BusScale::ONE }
+}
+
+/// The mechanics of the `drvi-actuator` preset, in 0.01° of the motor: a
 /// home proximity (PROXY INPUT) from 20 000 to 25 000, hard end stops at −50 000 and 150 000,
 /// an encoder index every 36 000 (one turn) at 1 000, no EXT PROXY. The DRVI starts with a
 /// free motor ([`super::machine`]); tests that need the proximity or the end stops take this.
@@ -357,7 +448,7 @@ pub fn plant(bandwidth: f64) -> PlantConfig {
     PlantConfig { inertia: 1000.0 / 3.6e6, viscous: 1000.0 / 1.8e6, coulomb: 20.0, bandwidth, max_speed: 1.8e6 }
 }
 
-/// A DRVI application on `machine` (positions in 0.01° or 0.01 mm).
+/// A DRVI application on `machine` (positions in 0.01° of the motor).
 pub fn app_with(machine: &Machine) -> Cia402App<generated::drvi::Dictionary, Drvi> {
     let drvi = Drvi { inertia_factor: machine.inertia_factor(), ..Drvi::default() };
     let mut app = Cia402App::new(drvi, error_table(DeviceKind::Drvi));
@@ -590,24 +681,38 @@ impl<OD: ObjectDictionary> Vendor<OD> for Drvi {
         true
     }
 
-    /// 2001h: new unit = default unit × numerator / denominator, for positions, velocities and
-    /// accelerations alike (torque stays in mA).
+    /// The axis counts 0.01° of the motor ([`COUNTS_PER_TURN`] a turn) in every configuration.
+    /// Only motor: 2001h alone (new unit = default unit × numerator / denominator). An
+    /// actuator: 2001h, then 6092h and 6091h ([`actuator_scale`]).
     fn scale(&self, od: &OD) -> BusScale {
-        let num = read_int(od, 0x2001, 1).filter(|v| *v > 0).unwrap_or(1);
-        let den = read_int(od, 0x2001, 2).filter(|v| *v > 0).unwrap_or(1);
-        let r = Ratio::new(den, num);
-        BusScale { position: r, velocity: r, acceleration: r, ..BusScale::ONE }
+        if only_motor(od) {
+            // 0.01°, 0.01 rpm (= 0.06 °/s = 6 counts/s), rpm/s (= 6 °/s² = 600 counts/s²).
+            let (num, den) = (u128::from(term(od, 0x2001, 2)), u128::from(term(od, 0x2001, 1)));
+            BusScale {
+                position: fit(num, den),
+                velocity: fit(num * 6, den),
+                acceleration: fit(num * 600, den),
+                ..BusScale::ONE
+            }
+        } else {
+            actuator_scale(od)
+        }
+    }
+
+    /// 2001h and 6092h divide ([`actuator_scale`]); the manual gives no meaning to a 0 in
+    /// either (6.3.6.1, 6.3.4.23), so the drive refuses it. 6091h may hold 0: its printed
+    /// default 0/0 is 1:1.
+    fn on_write(&mut self, _drive: &Drive, _od: &OD, write: &WriteRequest<'_>) -> Result<(), AbortCode> {
+        match (write.index, write.sub) {
+            (0x2001 | 0x6092, 1 | 2) if write.as_u64() == 0 => Err(AbortCode::INVALID_VALUE),
+            _ => Ok(()),
+        }
     }
 
     fn configure(&mut self, od: &OD, _scale: &BusScale, cfg: &mut AxisConfig) {
-        let only_motor = read_int(od, 0x2014, 0).unwrap_or(0) == 0;
-        cfg.units = if only_motor {
-            // 0.01°, 0.01 rpm (= 0.06 °/s = 6 units/s), rpm/s (= 6 °/s² = 600 units/s²).
-            Units { velocity: Ratio::new(6, 1), acceleration: Ratio::new(600, 1) }
-        } else {
-            // 0.01 mm, 0.01 mm/s (= 1 unit/s), mm/s² (= 100 units/s²).
-            Units { velocity: Ratio::new(1, 1), acceleration: Ratio::new(100, 1) }
-        };
+        // The bus scale gives counts, counts/s and counts/s² in both configurations: a bus
+        // value is rounded once, after the whole factor (2001h included).
+        cfg.units = Units { velocity: Ratio::ONE, acceleration: Ratio::ONE };
         cfg.relative_base = RelativeBase::ActualPosition;
         // The DRVI checks its limits itself (refusing targets rather than clipping them).
         cfg.software_limits = SoftwareLimits::default();

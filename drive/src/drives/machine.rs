@@ -3,7 +3,7 @@
 //!
 //! | device | default | presets | machine unit (the power-on 6064h unit) |
 //! |---|---|---|---|
-//! | DRVI | `free`: 2014h = 0, "only motor" (manual 4.1.1, 6.3.6.10): a bare motor turning freely | `free`, `drvi-actuator` | 0.01° (0.01 mm with an actuator) |
+//! | DRVI | `free`: 2014h = 0, "only motor" (manual 4.1.1, 6.3.6.10): a bare motor turning freely | `free`, `drvi-actuator` | 0.01° of the motor (an actuator shows positions through 6092h/6091h) |
 //! | DRCS | `drcs-belt`: the belt axis its EDS defaults describe (607Dh, 6092h: 1000 mm stroke, 70 mm per turn) | `drcs-belt`, `free` (QSet "only motor") | mm (° for only motor) |
 //! | AKD | `akd-linear`: limit switches at -1 and +2 turns, end stops at -2 and +3, a reference switch at 0.25..0.5 turn (the 7.2.1.7 and 7.2.1.8 homings need them) | `akd-linear`, `free` | motor turns |
 
@@ -35,7 +35,7 @@ pub fn presets(kind: DeviceKind) -> Vec<Preset> {
             free("a bare motor turning freely, as 2014h = 0 (only motor) says: no proximity, no end stops"),
             Preset {
                 name: "drvi-actuator",
-                description: "an actuator: proximity (PROXY INPUT) from 200.00 to 250.00, end stops at -500.00 and 1500.00, index every 360.00 at 10.00",
+                description: "a motor with a proximity (PROXY INPUT) from 200.00 to 250.00 deg, end stops at -500.00 and 1500.00 deg, index every turn at 10.00 deg (an actuator shows them through 6092h/6091h)",
                 machine: Machine {
                     home_switch: Some([20_000.0, 25_000.0]),
                     negative_end_stop: Some(-50_000.0),

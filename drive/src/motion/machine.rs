@@ -4,7 +4,7 @@
 //! [`Environment`] and plant.
 //!
 //! Positions are in the drive's *machine unit*, the position unit its 6064h shows at power-on
-//! with the default parameters (AKD: motor turns; DRVI: 0.01° or 0.01 mm; DRCS: mm or °), so a
+//! with the default parameters (AKD: motor turns; DRVI: 0.01° of the motor; DRCS: mm or °), so a
 //! file reads as the drive's documentation does. Each drive says how many of its internal
 //! counts a machine unit is, and how many machine units a motor turn is (the default distance
 //! between two encoder index pulses).
