@@ -181,7 +181,7 @@ impl Reader {
     /// densely, as `odgen check`'s arena does, fills its memory with it.)
     pub fn with_room(bytes: usize) -> Self {
         let mut scratch = lower::Scratch::default();
-        scratch.room_for = bytes;
+        scratch.pass1.room_for = bytes;
         Reader { bytes: Vec::new(), scratch }
     }
 
@@ -193,7 +193,7 @@ impl Reader {
     /// [`Reader::read_file`] of a file [`probe`] has accepted (it is not probed again).
     pub fn read_probed(&mut self, probed: &Probed<'_>, options: &Options) -> std::io::Result<Parsed> {
         let path = probed.path;
-        let bytes = read_bytes_into(probed, std::mem::take(&mut self.bytes), self.scratch.room_for)?;
+        let bytes = read_bytes_into(probed, std::mem::take(&mut self.bytes), self.scratch.pass1.room_for)?;
         let source = source::SourceFile::decode_owned(path.display().to_string(), bytes);
         let document = ast::Document::new(source);
         let (model, diagnostics, not_kept) = lower::lower_reusing(&document, options, &mut self.scratch);
@@ -206,17 +206,17 @@ impl Reader {
         let Parsed { document, model, mut diagnostics, .. } = parsed;
         self.scratch.pool.take_back(model);
         diagnostics.clear();
-        if diagnostics.capacity() > self.scratch.diags.capacity() {
-            self.scratch.diags = diagnostics;
+        if diagnostics.capacity() > self.scratch.pass1.diags.capacity() {
+            self.scratch.pass1.diags = diagnostics;
         }
         let (text, line_starts) = document.source.into_buffers();
         if text.capacity() > self.bytes.capacity() {
             self.bytes = text.into_bytes();
         }
         if let Some(starts) = line_starts
-            && starts.capacity() > self.scratch.line_starts.capacity()
+            && starts.capacity() > self.scratch.pass1.line_starts.capacity()
         {
-            self.scratch.line_starts = starts;
+            self.scratch.pass1.line_starts = starts;
         }
     }
 }
