@@ -436,8 +436,8 @@ mod tests {
     }
 
     /// The calling thread, once it has no item left, waits for the workers' results and is
-    /// woken for each (the workers wake it only when it waits): the workers are made slow, so
-    /// that it waits, in many rounds. A missed wake would leave it waiting: the run is timed.
+    /// woken for each: the workers are made slow, so that it waits, in many rounds. A missed
+    /// wake would leave it waiting: the run is timed.
     #[test]
     fn par_each_waits_for_slow_workers_and_is_woken() {
         let (tx, rx) = std::sync::mpsc::channel();
