@@ -3,7 +3,7 @@
 //! Each file's part of the output is rendered by the thread that read it (which then drops the
 //! file's text and model, so its memory serves the next file), and the parts go out in the
 //! order of the files through one buffer ([`super::Stream`]): with one thread, straight into
-//! that buffer; with several, into blocks the writer takes in order. JSON and SARIF are
+//! that buffer; with several, into a string per file that the writer takes in order. JSON and SARIF are
 //! written directly, not through a value tree per diagnostic.
 
 use std::path::PathBuf;
@@ -93,100 +93,25 @@ impl Args {
 /// read it, and its counts. The file's text, model and diagnostics are dropped there and then,
 /// so that the thread's next file reuses their memory, and rendering runs on every thread.
 struct Report {
-    /// The text, in blocks of about [`BLOCK`] bytes.
-    blocks: Vec<String>,
+    text: String,
     /// Whether the part has anything in it ([`writes_anything`]).
     writes: bool,
     counts: Counts,
 }
 
-/// The size of the blocks a report is rendered into. A report grows by whole blocks, never by
-/// copying what it has into a larger buffer, and the writer hands each block back once written
-/// ([`Blocks`]), so that the next file's report is rendered into memory already in use: a file
-/// with many diagnostics has hundreds of kilobytes of report, which a string doubling its size
-/// as it grew made fresh pages and copies of, file after file.
-///
-/// Small blocks, because reports wait: the threads take the files largest first and the writer
-/// writes them in the order given, so that most reports are held until the end, each with the
-/// unused rest of its last block. With 64 KiB blocks the corpus check held 10 to 16 of them
-/// (0.8 to 1.3 MB) for 480 KB of report; with 16 KiB, 38 (608 KiB).
-const BLOCK: usize = 16 << 10;
-
-/// A block is full once it holds this much: the rest is room for the diagnostic that fills it
-/// (a few hundred bytes as a rule; a larger one grows the block).
-const FULL: usize = BLOCK - (4 << 10);
-
-/// A report shorter than this is copied out of its block ([`Blocks::finish`]).
-const SMALL: usize = 4 << 10;
-
-/// At most this many written blocks are kept to render into again (the rest are freed).
-const SPARE: usize = 32;
-
 /// The largest file one thread's reader is first made for (four times what `eds::Reader::new`
 /// makes room for; a larger file makes its own buffers as it is read).
 const ROOM_AT_MOST: usize = 4 * eds::Reader::ROOM;
 
-/// The blocks a report is rendered into, taken from the ones written out before.
-struct Blocks<'a> {
-    done: Vec<String>,
-    current: String,
-    spare: &'a Spare,
-}
-
-/// Blocks written out, ready to be rendered into again.
-type Spare = std::sync::Mutex<Vec<String>>;
-
-impl<'a> Blocks<'a> {
-    fn new(spare: &'a Spare) -> Self {
-        let mut b = Blocks { done: Vec::new(), current: String::new(), spare };
-        b.current = b.take();
-        b
-    }
-
-    /// An empty block: a spare one, or a new one.
-    fn take(&self) -> String {
-        let spare = self.spare.lock().unwrap_or_else(|e| e.into_inner()).pop();
-        spare.unwrap_or_else(|| String::with_capacity(BLOCK))
-    }
-
-    /// The block to append the next piece to (a new one once the current one is full).
-    fn text(&mut self) -> &mut String {
-        if self.current.len() >= FULL {
-            let next = self.take();
-            self.done.push(std::mem::replace(&mut self.current, next));
-        }
-        &mut self.current
-    }
-
-    /// The report's blocks. A report that fills less than [`SMALL`] of its one block is copied
-    /// into a string of its own length and the block goes back to the spare ones at once: most
-    /// files' reports are a few KiB, and each would otherwise keep a block of its own, and its
-    /// fresh pages, until the writer gets to it (the threads take the files largest first, the
-    /// writer writes them in the order given).
-    fn finish(mut self) -> Vec<String> {
-        if self.done.is_empty() && self.current.len() < SMALL {
-            let report = self.current.as_str().to_owned();
-            self.current.clear();
-            let mut spare = self.spare.lock().unwrap_or_else(|e| e.into_inner());
-            if spare.len() < SPARE {
-                spare.push(self.current);
-            }
-            return vec![report];
-        }
-        self.done.push(self.current);
-        self.done
-    }
-}
-
-/// Where a report is rendered: the blocks handed to the writer, or the output itself.
+/// Where a report is rendered: a string handed to the writer, or the output itself.
 trait Sink {
     /// The buffer to append the next piece (a diagnostic, at most a few KiB) to.
     fn text(&mut self) -> &mut String;
 }
 
-impl Sink for Blocks<'_> {
+impl Sink for String {
     fn text(&mut self) -> &mut String {
-        Blocks::text(self)
+        self
     }
 }
 
@@ -316,40 +241,24 @@ impl Check {
         tally
     }
 
-    /// The files read on `jobs` threads, largest first, each file's report rendered into
-    /// blocks by the thread that read it and written in the order of the files.
+    /// The files read on `jobs` threads, largest first, each file's report rendered by the
+    /// thread that read it and written in the order of the files.
     fn on_threads(&self, jobs: usize, files: &[PathBuf], probed: &[Probe<'_>], out: &mut Stream) -> Tally {
         let mut tally = Tally::default();
-        // Blocks handed back by the writer, for the readers to render the next files into.
-        let spare: Spare = std::sync::Mutex::new(Vec::new());
         let read = |i: usize, _: &PathBuf| {
             let probed = probed_file(&probed[i])?;
-            let mut blocks = Blocks::new(&spare);
+            let mut text = String::new();
             let mut writes = false;
-            let counts = self.check_file(probed, 0, &mut blocks, |w, _| writes = w)?;
-            Ok::<_, std::io::Error>(Report { blocks: blocks.finish(), writes, counts })
+            let counts = self.check_file(probed, 0, &mut text, |w, _| writes = w)?;
+            Ok::<_, std::io::Error>(Report { text, writes, counts })
         };
-        super::par_each(jobs, files, super::largest_first(sizes(probed)), read, |path, report| {
-            let report = match report {
-                Ok(r) => r,
-                Err(e) => return tally.cannot_read(path, e, self.format),
-            };
-            tally.counts.add_counts(&report.counts);
-            separate(report.writes, &mut tally.any, out);
-            let mut blocks = report.blocks;
-            for block in &blocks {
-                out.push(block);
+        super::par_each(jobs, files, super::largest_first(sizes(probed)), read, |path, report| match report {
+            Ok(report) => {
+                tally.counts.add_counts(&report.counts);
+                separate(report.writes, &mut tally.any, out);
+                out.push(&report.text);
             }
-            // The written blocks go back to the spare ones once written, under a lock held
-            // only for that: a reader taking a block must not wait while the writer writes.
-            blocks.retain_mut(|block| {
-                block.clear();
-                // (A report copied out of its block is no block: it is freed.)
-                block.capacity() >= BLOCK
-            });
-            let mut spare = spare.lock().unwrap_or_else(|e| e.into_inner());
-            let room = SPARE.saturating_sub(spare.len());
-            spare.extend(blocks.into_iter().take(room));
+            Err(e) => tally.cannot_read(path, e, self.format),
         });
         tally
     }
@@ -519,39 +428,4 @@ fn summary(c: &Counts, level: Level) -> String {
         parts.push(part(c.notes, "note", Severity::Note, "--notes"));
     }
     if parts.is_empty() { "no problems".to_owned() } else { parts.join(", ") }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A report of one block shorter than `SMALL` comes back as a string of its own length and
-    /// leaves its block to the spare ones; a longer one keeps its blocks, in order; the text is
-    /// the same either way.
-    #[test]
-    fn small_reports_leave_their_block_at_once() {
-        let spare: Spare = std::sync::Mutex::new(Vec::new());
-        for len in [0, 1, 100, SMALL - 1, SMALL, FULL - 1, FULL, FULL + 1, BLOCK - 1, BLOCK, 3 * BLOCK + 5] {
-            spare.lock().unwrap().clear();
-            let mut blocks = Blocks::new(&spare);
-            let text: String = (0..len).map(|i| char::from(b'a' + (i % 26) as u8)).collect();
-            // Pieces of at most a few KiB, as diagnostics are.
-            for piece in text.as_bytes().chunks(3000) {
-                blocks.text().push_str(std::str::from_utf8(piece).unwrap());
-            }
-            let report = blocks.finish();
-            assert_eq!(report.concat(), text, "len {len}");
-            let spare_now = spare.lock().unwrap();
-            if len < SMALL {
-                assert_eq!(report.len(), 1);
-                assert!(report[0].capacity() < SMALL, "len {len}: capacity {}", report[0].capacity());
-                assert_eq!(spare_now.len(), 1, "len {len}");
-                assert!(spare_now[0].is_empty() && spare_now[0].capacity() >= BLOCK);
-            } else {
-                assert!(spare_now.is_empty(), "len {len}");
-                // (Pieces of at most `BLOCK - FULL` bytes never grow a block.)
-                assert!(report.iter().all(|b| b.capacity() == BLOCK), "len {len}");
-            }
-        }
-    }
 }
