@@ -178,7 +178,7 @@ impl Reader {
     /// that gives its files largest first, whose buffers are then made once and are no larger
     /// than that file needs. (Room never written costs only address space where the allocator
     /// takes fresh pages from the system as they are touched; an allocator that packs blocks
-    /// densely, as `odgen check`'s arena does, fills its memory with it.)
+    /// densely fills its memory with it.)
     pub fn with_room(bytes: usize) -> Self {
         let mut scratch = lower::Scratch::default();
         scratch.pass1.room_for = bytes;

@@ -616,8 +616,8 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     // Sized so that nothing grows while the lines are read: the corpus has a line every 15
     // bytes, an entry line every 20 and a section every 120 on average, and its densest files a
     // line every 12.4 bytes and a section every 68; these bounds hold for every file of it (one
-    // that exceeds them grows once or twice). Not much more: room is memory where blocks are
-    // packed densely (`odgen check`'s arena), and these lists are twice the text's size.
+    // that exceeds them grows once or twice). Not much more: these lists are twice the text's
+    // size, and an allocator that packs blocks densely fills memory with room never written.
     let text = &src.text;
     let sections = text.len() / 64 + 8;
     let room = text.len().max(scratch.room_for);
