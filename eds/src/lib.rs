@@ -2,7 +2,7 @@
 //!
 //! Pipeline: bytes → [`source::SourceFile`] (UTF-8, Windows-1252 fallback) → [`lex`] →
 //! [`ast::Document`] (lossless: every byte, comment, key spelling and order kept) → [`lower`] →
-//! [`model::Model`] (typed) + [`diag::Diagnostic`]s → [`write`] (canonical EDS/DCF text).
+//! [`model::Model`] (typed) + [`diag::Diagnostic`]s → [`mod@write`] (canonical EDS/DCF text).
 #![deny(missing_docs)]
 
 pub mod ast;
