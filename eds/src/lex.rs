@@ -1,4 +1,5 @@
-//! The lexer: decoded text → lossless [`crate::ast::Document`].
+//! The lexer: decoded text → lossless lines ([`Line`]), from which the syntax tree
+//! (`crate::ast`) is built.
 //!
 //! The lexer works one physical line at a time. A line ends at `\r\n`, `\n` or a lone `\r`;
 //! the last line may have no ending at all. Each line's content (without its ending) is
@@ -19,8 +20,8 @@
 //!
 //! Positions are byte [`Span`]s into the decoded text; [`crate::source::SourceFile::line_col`]
 //! turns them into lines and columns for diagnostics. The lexer never fails and never drops a
-//! byte: the `raw` spans of the lines tile the text exactly, so
-//! [`crate::ast::Document::write_lossless`] gives the input back.
+//! byte: the `raw` spans of the lines tile the text exactly, so that they give the input
+//! back.
 //!
 //! # Speed
 //!
@@ -44,41 +45,77 @@
 //! fourth is `source::SourceFile::decode_owned`, which takes a file all of whose bytes are ASCII as
 //! its text without validating it as UTF-8 again).
 //! Trimming looks at the bytes at either end and only falls back to [`str::trim`] when it meets
-//! a non-ASCII byte there (which may be Unicode white space). [`Lexer`] allocates nothing; [`lex`]
-//! allocates the `Vec` of lines and the line index.
+//! a non-ASCII byte there (which may be Unicode white space). [`Lexer`] allocates nothing; [`lex_lines`]
+//! allocates the `Vec` of lines.
 
 use nom::bytes::complete::take_while;
 use nom::{IResult, Parser};
 
-use crate::ast::{Document, Line, LineEnding, LineKind};
-use crate::source::{SourceFile, Span};
+use crate::source::Span;
 
-/// Lexes a decoded source file. Never fails: unrecognised lines become [`LineKind::Garbage`].
-pub fn lex(source: SourceFile) -> Document {
-    let mut starts = Vec::with_capacity(source.text.len() / 12 + 2);
-    starts.push(0);
-    // Typical EDS lines are 12-25 bytes long; a few more or less costs little either way.
-    let mut lines = Vec::with_capacity(source.text.len() / 10 + 16);
-    let mut lexer = Lexer::new(&source.text);
-    for line in &mut lexer {
-        if line.ending != LineEnding::None {
-            starts.push(line.raw.end);
-        }
-        lines.push(line);
-    }
-    // The lexer found every line end: give the source its line index instead of letting it search.
-    source.set_line_starts(starts);
-    Document::with_lines(source, lines)
+/// How a line ends.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LineEnding {
+    /// `\n`
+    Lf,
+    /// `\r\n`
+    CrLf,
+    /// A lone `\r` (old Mac files).
+    Cr,
+    /// The last line of a file without a final line break.
+    None,
 }
 
-/// Lexes text into lines (the work behind [`lex`]).
+/// What a line says.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum LineKind {
+    /// Only white space.
+    Blank,
+    /// A `;` comment line (`text` is the span after the `;`).
+    Comment {
+        /// The comment text after `;`.
+        text: Span,
+    },
+    /// `[name]` (`name` excludes the brackets and surrounding spaces).
+    Section {
+        /// The section name as written.
+        name: Span,
+        /// Trailing text after `]` (usually an inline comment); empty span if none.
+        trailing: Span,
+    },
+    /// `key=value` (`key` and `value` trimmed of surrounding white space; an inline `;`
+    /// comment is not split off, because CiA 306 values such as ParameterName may contain `;`).
+    Entry {
+        /// The key as written.
+        key: Span,
+        /// The value as written (may be empty).
+        value: Span,
+    },
+    /// A line that is none of the above (reported as a diagnostic, kept for round trips).
+    Garbage,
+}
+
+/// One physical line of the input.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Line {
+    /// The whole line including its line ending.
+    pub raw: Span,
+    /// The line without its line ending.
+    pub content: Span,
+    /// Its line ending.
+    pub ending: LineEnding,
+    /// Its meaning.
+    pub kind: LineKind,
+}
+
+/// Lexes text into lines (all the lines [`Lexer`] yields).
 pub fn lex_lines(text: &str) -> Vec<Line> {
     let mut lines = Vec::with_capacity(text.len() / 10 + 16);
     lines.extend(Lexer::new(text));
     lines
 }
 
-/// The lexer, as an iterator over the lines of a text, in order. [`lex`] collects them; the
+/// The lexer, as an iterator over the lines of a text, in order. [`lex_lines`] collects them; the
 /// reader ([`crate::parse`]) takes them one at a time and keeps none.
 #[derive(Clone, Debug)]
 pub struct Lexer<'a> {

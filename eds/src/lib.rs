@@ -3,7 +3,7 @@
 //!
 //! Bytes → [`source::SourceFile`] (UTF-8, Windows-1252 fallback) → [`lex`] →
 //! [`ast::Document`] (lossless: every byte, comment, key spelling and order kept) → [`lower`] →
-//! [`model::Model`] (typed) + [`diag::Diagnostic`]s → [`write`](mod@write) (canonical EDS/DCF text).
+//! [`model::Model`] (typed) + [`diag::Diagnostic`]s → [`mod@write`] (canonical EDS/DCF text).
 #![deny(missing_docs)]
 
 pub mod ast;
@@ -179,10 +179,10 @@ impl Reader {
     /// that gives its files largest first, whose buffers are then made once and are no larger
     /// than that file needs. (Room never written costs only address space where the allocator
     /// takes fresh pages from the system as they are touched; an allocator that packs blocks
-    /// densely, as `odgen check`'s arena does, fills its memory with it.)
+    /// densely fills its memory with it.)
     pub fn with_room(bytes: usize) -> Self {
         let mut scratch = lower::Scratch::default();
-        scratch.room_for = bytes;
+        scratch.pass1.room_for = bytes;
         Reader { bytes: Vec::new(), scratch }
     }
 
@@ -194,7 +194,7 @@ impl Reader {
     /// [`Reader::read_file`] of a file [`probe`] has accepted (it is not probed again).
     pub fn read_probed(&mut self, probed: &Probed<'_>, options: &Options) -> std::io::Result<Parsed> {
         let path = probed.path;
-        let bytes = read_bytes_into(probed, std::mem::take(&mut self.bytes), self.scratch.room_for)?;
+        let bytes = read_bytes_into(probed, std::mem::take(&mut self.bytes), self.scratch.pass1.room_for)?;
         let source = source::SourceFile::decode_owned(path.display().to_string(), bytes);
         let document = ast::Document::new(source);
         let (model, diagnostics, not_kept) = lower::lower_reusing(&document, options, &mut self.scratch);
@@ -207,17 +207,17 @@ impl Reader {
         let Parsed { document, model, mut diagnostics, .. } = parsed;
         self.scratch.pool.take_back(model);
         diagnostics.clear();
-        if diagnostics.capacity() > self.scratch.diags.capacity() {
-            self.scratch.diags = diagnostics;
+        if diagnostics.capacity() > self.scratch.pass1.diags.capacity() {
+            self.scratch.pass1.diags = diagnostics;
         }
         let (text, line_starts) = document.source.into_buffers();
         if text.capacity() > self.bytes.capacity() {
             self.bytes = text.into_bytes();
         }
         if let Some(starts) = line_starts
-            && starts.capacity() > self.scratch.line_starts.capacity()
+            && starts.capacity() > self.scratch.pass1.line_starts.capacity()
         {
-            self.scratch.line_starts = starts;
+            self.scratch.pass1.line_starts = starts;
         }
     }
 }

@@ -25,7 +25,6 @@ mod sections;
 mod validate;
 
 pub use pdo::expand_compact_pdo;
-pub(crate) use sections::Scratch;
 #[doc(hidden)]
 pub use sections::name_comparisons;
 
@@ -48,31 +47,42 @@ pub fn lower_counting(doc: &Document, options: &Options) -> (Model, Vec<Diagnost
     lower_reusing(doc, options, &mut Scratch::default())
 }
 
+/// The buffers a [`crate::Reader`] keeps from one file to the next: pass 1's and pass 3's.
+#[derive(Default)]
+pub(crate) struct Scratch {
+    /// Pass 1's buffers, the line index and the diagnostics vector.
+    pub pass1: sections::Scratch,
+    /// Pass 3's buffers and the models' lists of objects ([`crate::Reader::recycle`]).
+    pub pool: pool::Pool,
+}
+
 /// [`lower`] with the buffers an earlier file left in `scratch` (and leaving this file's there).
 pub(crate) fn lower_reusing(
     doc: &Document,
     options: &Options,
     scratch: &mut Scratch,
 ) -> (Model, Vec<Diagnostic>, crate::NotKept) {
-    let mut cx = Ctx::reusing(&doc.source, options.strictness, std::mem::take(&mut scratch.diags), scratch.room_for);
+    let Scratch { pass1, pool } = scratch;
+    let mut cx = Ctx::reusing(&doc.source, options.strictness, std::mem::take(&mut pass1.diags), pass1.room_for);
     cx.least_kept = options.least_kept();
-    cx.pool = std::mem::take(&mut scratch.pool);
-    cx.pool.room = scratch.room_for;
-    let mut collected = sections::collect(doc, &mut cx, scratch);
+    cx.pool = std::mem::take(pool);
+    cx.pool.room = pass1.room_for;
+    let mut collected = sections::collect(doc, &mut cx, pass1);
     let secs = collected.sections();
     let mut model = Model::default();
     info::lower_info(&secs, &mut model, &mut cx);
     let is_dcf = model.commissioning.is_some()
         || doc.source.name.rsplit('.').next().is_some_and(|ext| ext.eq_ignore_ascii_case("dcf"));
     model.kind = if is_dcf { FileKind::Dcf } else { FileKind::Eds };
-    let lists = info::lower_object_lists(&secs, &mut cx);
+    let listed = std::mem::take(&mut cx.pool.listed);
+    let lists = info::lower_object_lists(&secs, &mut cx, listed);
     objects::lower_objects(&secs, &lists, &mut model, &mut cx);
     validate::validate(&secs, &lists, &model, &mut cx);
-    lists.give_back(&mut cx.pool);
+    cx.pool.listed = lists.into_set();
     let list = sections::reuse(secs.list);
-    scratch.keep(collected, list);
+    pass1.keep(collected, list);
     cx.report_left_out();
-    scratch.pool = cx.pool;
+    *pool = cx.pool;
     let not_kept = cx.not_kept;
     let mut diags = cx.diags;
     // File order: by position, whole-file diagnostics last. The sort is stable, so diagnostics

@@ -1,6 +1,6 @@
 //! Writing a file the user named without replacing what was not ours to replace.
 //!
-//! [`write`] puts new contents at a path the way an editor saves: into a temporary file beside
+//! [`write()`] puts new contents at a path the way an editor saves: into a temporary file beside
 //! the target, flushed to disk, then renamed over it, so that an interrupted run never leaves
 //! half a file. Around that:
 //!
@@ -22,7 +22,7 @@ use std::path::{Path, PathBuf};
 pub enum Destination {
     /// Standard output.
     Stdout,
-    /// A file, written by [`write`].
+    /// A file, written by [`write()`].
     File(PathBuf),
 }
 

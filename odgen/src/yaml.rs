@@ -37,32 +37,27 @@ pub fn from_json(json: &str) -> Result<String, String> {
 /// Converts the JSON document `input` yields to block-style YAML in `out`, as it reads.
 pub fn convert(input: impl BufRead, out: &mut impl Sink) -> Result<(), String> {
     let mut c = Converter { r: input, pos: 0, out };
-    c.ws()?;
-    match c.peek()? {
-        Some(b'{') | Some(b'[') => {
-            let open = c.next()?.unwrap_or(b'{');
-            let close = if open == b'{' { b'}' } else { b']' };
-            c.ws()?;
-            if c.peek()? == Some(close) {
-                c.next()?;
-                c.out.push(if open == b'{' { "{}\n" } else { "[]\n" });
-            } else if open == b'{' {
-                c.map_body(0)?;
-            } else {
-                c.seq_body(0)?;
-            }
-        }
-        _ => {
-            let s = c.scalar()?;
-            c.out.push(&s);
-            c.out.push("\n");
-        }
-    }
+    c.document_value()?;
     c.ws()?;
     if c.peek()?.is_some() {
         return Err(format!("trailing characters at byte {}", c.pos));
     }
     Ok(())
+}
+
+/// What kind of value comes next (for an object or array, its opening bracket is read, and for
+/// an empty one its closing bracket too).
+enum Next {
+    /// A string, number, `true`, `false` or `null` (nothing read yet).
+    Scalar,
+    /// `{}`.
+    EmptyMap,
+    /// `[]`.
+    EmptySeq,
+    /// An object with fields, its `{` read.
+    Map,
+    /// An array with items, its `[` read.
+    Seq,
 }
 
 struct Converter<'o, R, S> {
@@ -108,6 +103,44 @@ impl<R: BufRead, S: Sink> Converter<'_, R, S> {
         if self.next()? == Some(c) { Ok(()) } else { Err(format!("expected `{}` at byte {}", c as char, self.pos)) }
     }
 
+    /// Which kind of value comes next ([`Next`]).
+    fn next_value(&mut self) -> Result<Next, String> {
+        self.ws()?;
+        let open = match self.peek()? {
+            Some(open @ (b'{' | b'[')) => open,
+            _ => return Ok(Next::Scalar),
+        };
+        self.next()?;
+        let close = if open == b'{' { b'}' } else { b']' };
+        self.ws()?;
+        let empty = self.peek()? == Some(close);
+        if empty {
+            self.next()?;
+        }
+        Ok(match (open == b'{', empty) {
+            (true, true) => Next::EmptyMap,
+            (true, false) => Next::Map,
+            (false, true) => Next::EmptySeq,
+            (false, false) => Next::Seq,
+        })
+    }
+
+    /// The document's one value, at the left margin.
+    fn document_value(&mut self) -> Result<(), String> {
+        match self.next_value()? {
+            Next::EmptyMap => self.out.push("{}\n"),
+            Next::EmptySeq => self.out.push("[]\n"),
+            Next::Map => return self.map_body(0),
+            Next::Seq => return self.seq_body(0),
+            Next::Scalar => {
+                let s = self.scalar()?;
+                self.out.push(&s);
+                self.out.push("\n");
+            }
+        }
+        Ok(())
+    }
+
     /// The fields of a non-empty object whose `{` was read, at `level`; reads the `}`.
     fn map_body(&mut self, level: usize) -> Result<(), String> {
         let mut first = true;
@@ -133,34 +166,23 @@ impl<R: BufRead, S: Sink> Converter<'_, R, S> {
         self.out.push(&string_text(&key));
         self.out.push(":");
         self.eat(b':')?;
-        self.after_key(level)
+        self.value_after_key(level)
     }
 
-    /// A value after `key:` (or `-`), at `level` for its block content.
-    fn after_key(&mut self, level: usize) -> Result<(), String> {
-        self.ws()?;
-        match self.peek()? {
-            Some(open @ (b'{' | b'[')) => {
-                self.next()?;
-                let close = if open == b'{' { b'}' } else { b']' };
-                self.ws()?;
-                if self.peek()? == Some(close) {
-                    self.next()?;
-                    self.out.push(if open == b'{' { " {}\n" } else { " []\n" });
-                    return Ok(());
-                }
+    /// A value after `key:`: on the key's line when it is a scalar or empty, otherwise on the
+    /// next lines at `level + 1`.
+    fn value_after_key(&mut self, level: usize) -> Result<(), String> {
+        match self.next_value()? {
+            Next::EmptyMap => self.out.push(" {}\n"),
+            Next::EmptySeq => self.out.push(" []\n"),
+            next @ (Next::Map | Next::Seq) => {
                 self.out.push("\n");
                 indent(self.out, level + 1);
-                if open == b'{' { self.map_body(level + 1) } else { self.seq_body(level + 1) }
+                return if matches!(next, Next::Map) { self.map_body(level + 1) } else { self.seq_body(level + 1) };
             }
-            _ => {
-                let s = self.scalar()?;
-                self.out.push(" ");
-                self.out.push(&s);
-                self.out.push("\n");
-                Ok(())
-            }
+            Next::Scalar => self.scalar_on_line()?,
         }
+        Ok(())
     }
 
     /// The items of a non-empty array whose `[` was read, at `level` (the first item's
@@ -173,32 +195,7 @@ impl<R: BufRead, S: Sink> Converter<'_, R, S> {
             }
             first = false;
             self.out.push("-");
-            self.ws()?;
-            match self.peek()? {
-                Some(open @ (b'{' | b'[')) => {
-                    self.next()?;
-                    let close = if open == b'{' { b'}' } else { b']' };
-                    self.ws()?;
-                    if self.peek()? == Some(close) {
-                        self.next()?;
-                        self.out.push(if open == b'{' { " {}\n" } else { " []\n" });
-                    } else if open == b'{' {
-                        // First field on the dash line, the rest aligned under it.
-                        self.out.push(" ");
-                        self.map_body(level + 1)?;
-                    } else {
-                        self.out.push("\n");
-                        indent(self.out, level + 1);
-                        self.seq_body(level + 1)?;
-                    }
-                }
-                _ => {
-                    let s = self.scalar()?;
-                    self.out.push(" ");
-                    self.out.push(&s);
-                    self.out.push("\n");
-                }
-            }
+            self.item(level)?;
             self.ws()?;
             match self.next()? {
                 Some(b',') => {}
@@ -206,6 +203,35 @@ impl<R: BufRead, S: Sink> Converter<'_, R, S> {
                 _ => return Err(format!("expected `,` or `]` at byte {}", self.pos)),
             }
         }
+    }
+
+    /// An array item after its `-`: an object's first field on the dash line and the rest
+    /// aligned under it, an array on the next lines, anything else on the dash line.
+    fn item(&mut self, level: usize) -> Result<(), String> {
+        match self.next_value()? {
+            Next::EmptyMap => self.out.push(" {}\n"),
+            Next::EmptySeq => self.out.push(" []\n"),
+            Next::Map => {
+                self.out.push(" ");
+                self.map_body(level + 1)?;
+            }
+            Next::Seq => {
+                self.out.push("\n");
+                indent(self.out, level + 1);
+                self.seq_body(level + 1)?;
+            }
+            Next::Scalar => self.scalar_on_line()?,
+        }
+        Ok(())
+    }
+
+    /// A scalar on the line written so far: ` value` and the line's end.
+    fn scalar_on_line(&mut self) -> Result<(), String> {
+        let s = self.scalar()?;
+        self.out.push(" ");
+        self.out.push(&s);
+        self.out.push("\n");
+        Ok(())
     }
 
     /// A string, number, `true`, `false` or `null`, as YAML text.

@@ -684,10 +684,10 @@ impl Lists {
         })
     }
 
-    /// Gives the set of indices back to `pool` for the next file, emptied.
-    pub fn give_back(mut self, pool: &mut super::pool::Pool) {
+    /// The set of indices, emptied, for the next file's lists.
+    pub fn into_set(mut self) -> IndexSet {
         self.set.clear(self.listed.iter().map(|&(i, _, _)| i));
-        pool.listed = self.set;
+        self.set
     }
 }
 
@@ -696,7 +696,7 @@ impl Lists {
 /// blocks, so that the set is a kilobyte or two, on pages in use anyway (a bit for each of the
 /// 65,536 indices, 8 KiB kept from file to file, cost the run two fresh pages and displaced
 /// other blocks: four to seven page faults more than the hash map it replaces). Kept from one file to
-/// the next ([`Lists::give_back`]) and emptied by the indices put in it, not by zeroing it.
+/// the next ([`Lists::into_set`]) and emptied by the indices put in it, not by zeroing it.
 #[derive(Default)]
 pub(crate) struct IndexSet {
     /// For each high byte, the number of its block plus one (0: none); empty while no index was
@@ -775,8 +775,9 @@ pub(crate) fn expected_category(index: u16) -> Category {
     }
 }
 
-/// Reads the three object lists.
-pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists {
+/// Reads the three object lists, into `set` (emptied; an earlier file's, from
+/// [`Lists::into_set`], or a new one).
+pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>, set: IndexSet) -> Lists {
     let mut lists = Lists::default();
     let listed: usize = [Category::Mandatory, Category::Optional, Category::Manufacturer]
         .into_iter()
@@ -784,7 +785,7 @@ pub(crate) fn lower_object_lists(secs: &Sections<'_>, cx: &mut Ctx<'_>) -> Lists
         .map(|s| s.entries.len())
         .sum();
     lists.listed.reserve(listed);
-    lists.set = std::mem::take(&mut cx.pool.listed);
+    lists.set = set;
     // (Keyed by `u32`, as the index of sections is: one instance of the map's code for both.)
     let mut at: Option<FastMap<u32, u32>> = None;
     for cat in [Category::Mandatory, Category::Optional, Category::Manufacturer] {
@@ -1078,7 +1079,7 @@ mod tests {
                 0..40), 1..4),
         ) {
             let cats = [Category::Mandatory, Category::Optional, Category::Manufacturer];
-            let mut pool = super::super::pool::Pool::default();
+            let mut set = IndexSet::default();
             for entries in &files {
                 // Each list in the order of its first entry, its entries numbered in order.
                 let mut text = String::new();
@@ -1124,12 +1125,11 @@ mod tests {
                         }
                     }
                 }
-                let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", text.as_str()));
+                let doc = crate::ast::Document::lexed(crate::source::SourceFile::from_str("x.eds", text.as_str()));
                 let mut cx = Ctx::new(&doc.source, crate::Strictness::Lenient);
-                cx.pool = std::mem::take(&mut pool);
-                let mut collected = super::super::sections::collect(&doc, &mut cx, &mut Default::default());
+                let mut collected = crate::lower::sections::collect(&doc, &mut cx, &mut Default::default());
                 let secs = collected.sections();
-                let lists = lower_object_lists(&secs, &mut cx);
+                let lists = lower_object_lists(&secs, &mut cx, std::mem::take(&mut set));
                 proptest::prop_assert_eq!(
                     lists.listed.iter().map(|&(i, c, _)| (i, c)).collect::<Vec<_>>(),
                     reference.clone()
@@ -1143,8 +1143,7 @@ mod tests {
                     cx.diags.iter().filter(|d| d.code == codes::E0405).map(|d| d.message.clone()).collect();
                 proptest::prop_assert_eq!(repeats.len(), entries.len() - reference.len());
                 proptest::prop_assert_eq!(repeats, want_repeats);
-                lists.give_back(&mut cx.pool);
-                pool = std::mem::take(&mut cx.pool);
+                set = lists.into_set();
             }
         }
 

@@ -333,8 +333,6 @@ pub(crate) struct Scratch {
     /// grows is replaced, and its replacement's pages are fresh again, while room that is never
     /// written costs no memory (only address space).
     pub room_for: usize,
-    /// The buffers of the models given back ([`crate::Reader::recycle`]).
-    pub pool: super::pool::Pool,
 }
 
 impl Scratch {
@@ -618,8 +616,8 @@ pub(crate) fn collect<'a>(doc: &'a Document, cx: &mut Ctx<'_>, scratch: &mut Scr
     // Sized so that nothing grows while the lines are read: the corpus has a line every 15
     // bytes, an entry line every 20 and a section every 120 on average, and its densest files a
     // line every 12.4 bytes and a section every 68; these bounds hold for every file of it (one
-    // that exceeds them grows once or twice). Not much more: room is memory where blocks are
-    // packed densely (`odgen check`'s arena), and these lists are twice the text's size.
+    // that exceeds them grows once or twice). Not much more: these lists are twice the text's
+    // size, and an allocator that packs blocks densely fills memory with room never written.
     let text = &src.text;
     let sections = text.len() / 64 + 8;
     let room = text.len().max(scratch.room_for);
@@ -1395,7 +1393,7 @@ mod tests {
     /// the entry's key and value, and the spans found from where they lie in the text, are
     /// what the lexer's general path gives for that line, whichever path of the lexer read it.
     fn check_entries_against_the_general_path(text: &str) {
-        let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", text));
+        let doc = crate::ast::Document::lexed(crate::source::SourceFile::from_str("x.eds", text));
         let src_text: &str = &doc.source.text;
         let mut cx = Ctx::new(&doc.source, crate::Strictness::Lenient);
         let mut collected = collect(&doc, &mut cx, &mut Scratch::default());
@@ -1508,7 +1506,7 @@ mod tests {
                     text.push_str(&format!("{k}=v{j}\n"));
                 }
             }
-            let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", text.as_str()));
+            let doc = crate::ast::Document::lexed(crate::source::SourceFile::from_str("x.eds", text.as_str()));
             let mut cx = Ctx::new(&doc.source, crate::Strictness::Lenient);
             let mut collected = collect(&doc, &mut cx, &mut Scratch::default());
             let secs = collected.sections();
@@ -1591,7 +1589,7 @@ mod tests {
                     at += if k == 0 { 5 } else { format!("K{k}=v{n}\n").len() as u32 };
                 }
                 let repeated = headers.len() > order.len();
-                let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", &text));
+                let doc = crate::ast::Document::lexed(crate::source::SourceFile::from_str("x.eds", &text));
                 let mut cx = Ctx::new(&doc.source, crate::Strictness::Lenient);
                 let mut collected = collect(&doc, &mut cx, &mut scratch);
                 let secs = collected.sections();
@@ -1806,7 +1804,7 @@ mod tests {
     #[test]
     fn section_positions_are_what_line_col_says() {
         let text = "[FileInfo]\r[DeviceInfo]\r\n  [1000]\nK=v\r\r \u{e4}\u{e4}\r [1001]\n\t[2000]\n[ä]\r\n [3000]";
-        let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", text));
+        let doc = crate::ast::Document::lexed(crate::source::SourceFile::from_str("x.eds", text));
         let mut cx = Ctx::new(&doc.source, crate::Strictness::Lenient);
         let mut collected = collect(&doc, &mut cx, &mut Scratch::default());
         let heads = collected.heads.as_ptr() as usize;
@@ -1831,7 +1829,7 @@ mod tests {
                 text.push_str(&format!("{i}=0x{:04X}\n", 0x1000 + i));
             }
             text.push_str("xY=1\n2=0x2000\nXy=2\n");
-            let doc = crate::lex::lex(crate::source::SourceFile::from_str("x.eds", text));
+            let doc = crate::ast::Document::lexed(crate::source::SourceFile::from_str("x.eds", text));
             let mut cx = Ctx::new(&doc.source, crate::Strictness::Lenient);
             let mut collected = collect(&doc, &mut cx, &mut Scratch::default());
             let secs = collected.sections();

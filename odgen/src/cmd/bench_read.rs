@@ -107,7 +107,8 @@ pub fn run(args: Args) -> ExitCode {
             "files": files.len(),
             "bytes": bytes,
             "jobs": jobs,
-            "allocator": crate::ALLOCATOR,
+            // (The standard one: `odgen` sets no global allocator.)
+            "allocator": "system",
             "objects_per_pass": objects / iterations as usize,
             "iterations": iterations,
             "seconds": seconds,

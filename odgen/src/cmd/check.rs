@@ -3,7 +3,7 @@
 //! Each file's part of the output is rendered by the thread that read it (which then drops the
 //! file's text and model, so its memory serves the next file), and the parts go out in the
 //! order of the files through one buffer ([`super::Stream`]): with one thread, straight into
-//! that buffer; with several, into blocks the writer takes in order. JSON and SARIF are
+//! that buffer; with several, into a string per file that the writer takes in order. JSON and SARIF are
 //! written directly, not through a value tree per diagnostic.
 
 use std::path::PathBuf;
@@ -78,11 +78,14 @@ pub struct Args {
 }
 
 impl Args {
-    /// The arguments of `odgen check FILES...` with no option: what clap gives for such a line
-    /// (its defaults above), for the line `main` parses without clap (held to clap's result by
-    /// a test there).
-    pub fn files_only(files: Vec<PathBuf>) -> Args {
-        Args { strict: false, format: Format::Human, level: None, notes: false, jobs: None, files }
+    /// The least severe diagnostics printed: `--level`, or `--notes`, or the format's default.
+    fn level(&self) -> Level {
+        match (self.level, self.notes, self.format) {
+            (Some(l), _, _) => l,
+            (None, true, _) => Level::Note,
+            (None, false, Format::Human) => Level::Warning,
+            (None, false, _) => Level::Note,
+        }
     }
 }
 
@@ -90,101 +93,25 @@ impl Args {
 /// read it, and its counts. The file's text, model and diagnostics are dropped there and then,
 /// so that the thread's next file reuses their memory, and rendering runs on every thread.
 struct Report {
-    /// The text, in blocks of about [`BLOCK`] bytes.
-    blocks: Vec<String>,
+    text: String,
     /// Whether the part has anything in it ([`writes_anything`]).
     writes: bool,
     counts: Counts,
 }
 
-/// The size of the blocks a report is rendered into. A report grows by whole blocks, never by
-/// copying what it has into a larger buffer, and the writer hands each block back once written
-/// ([`Blocks`]), so that the next file's report is rendered into memory already in use: a file
-/// with many diagnostics has hundreds of kilobytes of report, which a string doubling its size
-/// as it grew made fresh pages and copies of, file after file.
-///
-/// Small blocks, because reports wait: the threads take the files largest first and the writer
-/// writes them in the order given, so that most reports are held until the end, each with the
-/// unused rest of its last block. With 64 KiB blocks the corpus check held 10 to 16 of them
-/// (0.8 to 1.3 MB, a third of the arena) for 480 KB of report; with 16 KiB, 38 (608 KiB). (16
-/// KiB is one of the arena's size classes, `crate::arena`.)
-const BLOCK: usize = 16 << 10;
-
-/// A block is full once it holds this much: the rest is room for the diagnostic that fills it
-/// (a few hundred bytes as a rule; a larger one grows the block).
-const FULL: usize = BLOCK - (4 << 10);
-
-/// A report shorter than this is copied out of its block ([`Blocks::finish`]).
-const SMALL: usize = 4 << 10;
-
-/// At most this many written blocks are kept to render into again (the rest are freed).
-const SPARE: usize = 32;
-
 /// The largest file one thread's reader is first made for (four times what `eds::Reader::new`
 /// makes room for; a larger file makes its own buffers as it is read).
 const ROOM_AT_MOST: usize = 4 * eds::Reader::ROOM;
 
-/// The blocks a report is rendered into, taken from the ones written out before.
-struct Blocks<'a> {
-    done: Vec<String>,
-    current: String,
-    spare: &'a Spare,
-}
-
-/// Blocks written out, ready to be rendered into again.
-type Spare = std::sync::Mutex<Vec<String>>;
-
-impl<'a> Blocks<'a> {
-    fn new(spare: &'a Spare) -> Self {
-        let mut b = Blocks { done: Vec::new(), current: String::new(), spare };
-        b.current = b.take();
-        b
-    }
-
-    /// An empty block: a spare one, or a new one.
-    fn take(&self) -> String {
-        let spare = self.spare.lock().unwrap_or_else(|e| e.into_inner()).pop();
-        spare.unwrap_or_else(|| String::with_capacity(BLOCK))
-    }
-
-    /// The block to append the next piece to (a new one once the current one is full).
-    fn text(&mut self) -> &mut String {
-        if self.current.len() >= FULL {
-            let next = self.take();
-            self.done.push(std::mem::replace(&mut self.current, next));
-        }
-        &mut self.current
-    }
-
-    /// The report's blocks. A report that fills less than [`SMALL`] of its one block is copied
-    /// into a string of its own length and the block goes back to the spare ones at once: most
-    /// files' reports are a few KiB, and each would otherwise keep a block of its own, and its
-    /// fresh pages, until the writer gets to it (the threads take the files largest first, the
-    /// writer writes them in the order given).
-    fn finish(mut self) -> Vec<String> {
-        if self.done.is_empty() && self.current.len() < SMALL {
-            let report = self.current.as_str().to_owned();
-            self.current.clear();
-            let mut spare = self.spare.lock().unwrap_or_else(|e| e.into_inner());
-            if spare.len() < SPARE {
-                spare.push(self.current);
-            }
-            return vec![report];
-        }
-        self.done.push(self.current);
-        self.done
-    }
-}
-
-/// Where a report is rendered: the blocks handed to the writer, or the output itself.
+/// Where a report is rendered: a string handed to the writer, or the output itself.
 trait Sink {
     /// The buffer to append the next piece (a diagnostic, at most a few KiB) to.
     fn text(&mut self) -> &mut String;
 }
 
-impl Sink for Blocks<'_> {
+impl Sink for String {
     fn text(&mut self) -> &mut String {
-        Blocks::text(self)
+        self
     }
 }
 
@@ -223,171 +150,194 @@ impl Counts {
 /// Runs the subcommand. Exit code 0 when no file has an error, 1 when one has, 2 when a file
 /// could not be read at all. Everything is written when it returns.
 pub fn run(args: Args) -> u8 {
+    let level = args.level();
     let options = if args.strict { eds::Options::strict() } else { eds::Options::lenient() };
-    let level = match (args.level, args.notes, args.format) {
-        (Some(l), _, _) => l,
-        (None, true, _) => Level::Note,
-        (None, false, Format::Human) => Level::Warning,
-        (None, false, _) => Level::Note,
-    };
     // Diagnostics below the level are counted, not made (the reader builds no text for them).
-    let options = options.keep_from(level.least());
-    let format = args.format;
+    let check = Check { options: options.keep_from(level.least()), format: args.format, level };
+    let (files, found) = super::expand_folders(&args.files);
+    // Every file is probed (for its size) once, before any is read: several threads take the
+    // largest first, one thread makes its reader for the largest.
+    let probed: Vec<_> = files.iter().zip(&found).map(|(path, found)| found.probe(path)).collect();
+    let jobs = super::jobs(args.jobs).min(files.len().max(1));
     let mut out = Stream::stdout();
-    let mut counts = Counts::default();
-    let mut unreadable: Vec<(String, String)> = Vec::new();
-    match args.format {
-        Format::Human => {}
-        Format::Json => out.push("{\"files\":["),
-        Format::Sarif => super::sarif::start(&mut out),
-    }
-    // Whether a JSON file object or a SARIF result was written (the next one needs a comma).
-    let mut any = false;
-    // Blocks handed back by the writer, for the readers to render the next files into.
-    let spare: Spare = std::sync::Mutex::new(Vec::new());
-    // Every path is asked about (a folder or a file: one system call a path), folders are
-    // listed, and every file is probed for its size (it is not probed again when read: a path
-    // given as a file is probed with what was asked about it): the threads take the largest
-    // files first, so that the last ones taken are small and the threads finish together. With
-    // at least as many paths as threads, the other threads are started first and all this
-    // overlaps their start; with fewer, the paths are looked at first, so as to start no more
-    // threads than there are files.
-    let jobs = super::jobs(args.jobs);
-    let expanded: std::sync::OnceLock<(Vec<PathBuf>, Vec<super::Found>)> = std::sync::OnceLock::new();
-    let expand = || expanded.get_or_init(|| super::expand_folders(&args.files));
-    let jobs = if jobs > 1 && args.files.len() >= jobs { jobs } else { jobs.min(expand().0.len().max(1)) };
-    let probes: std::sync::OnceLock<Vec<std::io::Result<eds::Probed<'_>>>> = std::sync::OnceLock::new();
-    // The files' memory comes from the arena (`crate::arena`) when they add up to enough for it
-    // to pay. This thread opens it (and has its first huge page filled), and has its second
-    // filled as it starts its first file, while the other threads start theirs
-    // (`arena::warm`: the threads fill the first page, and then reach the second).
-    // Every file is probed, and the arena opened for their sizes, once, before any is read (by
-    // one thread and by several alike).
-    let probe_all = || {
-        let (files, found) = expand();
-        probes.get_or_init(|| {
-            let probed: Vec<_> = files.iter().zip(found).map(|(path, found)| found.probe(path)).collect();
-            crate::arena::open_for(sizes(&probed).sum());
-            probed
-        })
+    check.open(&mut out);
+    let tally = if jobs == 1 {
+        check.on_one_thread(&files, &probed, &mut out)
+    } else {
+        check.on_threads(jobs, &files, &probed, &mut out)
     };
-    let find = || (expand().0.as_slice(), super::largest_first(sizes(probe_all())));
-    let read = |i: usize, _: &PathBuf| {
-        // (Once, on the thread that opened the arena; nothing on the others.)
-        crate::arena::warm();
-        // (Set by `find`, which runs before any file is read.)
-        let probed = probed_file(&probes.wait()[i])?;
-        let mut blocks = Blocks::new(&spare);
-        let mut writes = false;
-        let counts = check_file(probed, &options, format, level, 0, &mut blocks, |w, _| writes = w)?;
-        Ok::<_, std::io::Error>(Report { blocks: blocks.finish(), writes, counts })
-    };
+    check.close(&tally, files.len(), &mut out);
+    out.finish();
+    tally.exit_code()
+}
 
-    let cannot_read = |path: &std::path::Path, e: std::io::Error, unreadable: &mut Vec<(String, String)>| {
+/// What a run checks with: the reader's options, and what is printed how.
+struct Check {
+    options: eds::Options,
+    format: Format,
+    level: Level,
+}
+
+/// What a run found so far: the counts, the files that could not be read (name and why), and
+/// whether a JSON file object or a SARIF result was written (the next one needs a comma).
+#[derive(Default)]
+struct Tally {
+    counts: Counts,
+    unreadable: Vec<(String, String)>,
+    any: bool,
+}
+
+impl Tally {
+    /// A file that could not be read: said at once on standard error in human output, listed
+    /// in the JSON and SARIF documents.
+    fn cannot_read(&mut self, path: &std::path::Path, e: std::io::Error, format: Format) {
         let name = path.display().to_string();
         if format == Format::Human {
             eprintln!("error: cannot read {name}: {e}");
         }
-        unreadable.push((name, e.to_string()));
-    };
-    if jobs == 1 {
-        let files = &expand().0;
-        // One thread: each file's report is rendered straight into the output, which writes it
-        // as it fills, rather than into blocks handed over (a 200 KB report was four fresh
-        // 64 KiB blocks, then copied in part), in the files' order. The files are probed first,
-        // as with several threads, so that the arena is opened by the same rule and the
-        // reader is made for the largest of them: it reads them in the order given, and a
-        // buffer a later, larger file outgrew would be replaced. (At most for a file of
-        // `ROOM_AT_MOST`: the largest file may be one that cannot be read, and the others'
-        // buffers are not to be made for gigabytes; a larger file makes its own.)
-        let probed = probe_all();
-        let room = sizes(probed).max().unwrap_or(0).min(ROOM_AT_MOST as u64) as usize;
-        for (path, probed) in files.iter().zip(probed) {
-            let read = probed_file(probed).and_then(|probed| {
-                check_file(probed, &options, format, level, room, &mut out, |writes, out| {
-                    separate(writes, &mut any, out)
-                })
-            });
-            match read {
-                Ok(c) => counts.add_counts(&c),
-                Err(e) => cannot_read(path, e, &mut unreadable),
-            }
-        }
-    } else {
-        super::par_each(jobs, find, read, |path, report| {
-            let report = match report {
-                Ok(r) => r,
-                Err(e) => return cannot_read(path, e, &mut unreadable),
-            };
-            counts.add_counts(&report.counts);
-            separate(report.writes, &mut any, &mut out);
-            let mut blocks = report.blocks;
-            for block in &blocks {
-                out.push(block);
-            }
-            // The written blocks go back to the spare ones once written, under a lock held
-            // only for that: a reader taking a block must not wait while the writer writes
-            // (it did, 0.2 ms and more for each wake-up on our VMs).
-            blocks.retain_mut(|block| {
-                block.clear();
-                // (A report copied out of its block is no block: it is freed.)
-                block.capacity() >= BLOCK
-            });
-            let mut spare = spare.lock().unwrap_or_else(|e| e.into_inner());
-            let room = SPARE.saturating_sub(spare.len());
-            spare.extend(blocks.into_iter().take(room));
-        });
+        self.unreadable.push((name, e.to_string()));
     }
-    match args.format {
-        Format::Human => {
-            let files = expand().0.len();
-            let mut line =
-                format!("checked {files} file{}: {}", if files == 1 { "" } else { "s" }, summary(&counts, level));
-            if !unreadable.is_empty() {
-                line.push_str(&format!(", {} unreadable", unreadable.len()));
-            }
-            line.push('\n');
-            out.push(&line);
+
+    /// The exit code: 2 when a file could not be read, 1 when one has an error, 0 otherwise.
+    fn exit_code(&self) -> u8 {
+        if !self.unreadable.is_empty() {
+            EXIT_TROUBLE
+        } else if self.counts.errors > 0 {
+            EXIT_FAILURE
+        } else {
+            0
         }
-        Format::Json => out.with(|buf| {
-            use std::fmt::Write as _;
-            let _ = write!(
-                buf,
-                "\n],\n\"errors\":{},\"warnings\":{},\"notes\":{},\"unreadable\":{},\"unreadable_files\":[",
-                counts.errors,
-                counts.warnings,
-                counts.notes,
-                unreadable.len()
-            );
-            for (i, (file, reason)) in unreadable.iter().enumerate() {
-                buf.push_str(if i == 0 { "\n{\"file\":" } else { ",\n{\"file\":" });
-                eds::diag::push_json_str(buf, file);
-                buf.push_str(",\"reason\":");
-                eds::diag::push_json_str(buf, reason);
-                buf.push('}');
-            }
-            buf.push_str("]}\n");
-        }),
-        Format::Sarif => super::sarif::finish(&mut out, &unreadable),
-    }
-    out.finish();
-    if !unreadable.is_empty() {
-        EXIT_TROUBLE
-    } else if counts.errors > 0 {
-        EXIT_FAILURE
-    } else {
-        0
     }
 }
 
+impl Check {
+    /// The start of the output (JSON and SARIF open their document).
+    fn open(&self, out: &mut Stream) {
+        match self.format {
+            Format::Human => {}
+            Format::Json => out.push("{\"files\":["),
+            Format::Sarif => super::sarif::start(out),
+        }
+    }
+
+    /// The files read one after the other on this thread, each file's report rendered straight
+    /// into the output, which writes it as it fills. The reader is made for the largest file
+    /// (it reads them in the order given, and a buffer a later, larger file outgrew would be
+    /// replaced), at most for one of `ROOM_AT_MOST`: the largest file may be one that cannot
+    /// be read, and the others' buffers are not to be made for gigabytes; a larger file makes
+    /// its own.
+    fn on_one_thread(&self, files: &[PathBuf], probed: &[Probe<'_>], out: &mut Stream) -> Tally {
+        let mut tally = Tally::default();
+        let room = sizes(probed).max().unwrap_or(0).min(ROOM_AT_MOST as u64) as usize;
+        for (path, probed) in files.iter().zip(probed) {
+            let read = probed_file(probed).and_then(|probed| {
+                self.check_file(probed, room, out, |writes, out| separate(writes, &mut tally.any, out))
+            });
+            match read {
+                Ok(c) => tally.counts.add_counts(&c),
+                Err(e) => tally.cannot_read(path, e, self.format),
+            }
+        }
+        tally
+    }
+
+    /// The files read on `jobs` threads, largest first, each file's report rendered by the
+    /// thread that read it and written in the order of the files.
+    fn on_threads(&self, jobs: usize, files: &[PathBuf], probed: &[Probe<'_>], out: &mut Stream) -> Tally {
+        let mut tally = Tally::default();
+        let read = |i: usize, _: &PathBuf| {
+            let probed = probed_file(&probed[i])?;
+            let mut text = String::new();
+            let mut writes = false;
+            let counts = self.check_file(probed, 0, &mut text, |w, _| writes = w)?;
+            Ok::<_, std::io::Error>(Report { text, writes, counts })
+        };
+        super::par_each(jobs, files, super::largest_first(sizes(probed)), read, |path, report| match report {
+            Ok(report) => {
+                tally.counts.add_counts(&report.counts);
+                separate(report.writes, &mut tally.any, out);
+                out.push(&report.text);
+            }
+            Err(e) => tally.cannot_read(path, e, self.format),
+        });
+        tally
+    }
+
+    /// The end of the output: the summary line, or the JSON document's counts and unreadable
+    /// files, or the SARIF document's notifications.
+    fn close(&self, tally: &Tally, files: usize, out: &mut Stream) {
+        let Tally { counts, unreadable, .. } = tally;
+        match self.format {
+            Format::Human => {
+                let mut line = format!(
+                    "checked {files} file{}: {}",
+                    if files == 1 { "" } else { "s" },
+                    summary(counts, self.level)
+                );
+                if !unreadable.is_empty() {
+                    line.push_str(&format!(", {} unreadable", unreadable.len()));
+                }
+                line.push('\n');
+                out.push(&line);
+            }
+            Format::Json => out.with(|buf| {
+                use std::fmt::Write as _;
+                let _ = write!(
+                    buf,
+                    "\n],\n\"errors\":{},\"warnings\":{},\"notes\":{},\"unreadable\":{},\"unreadable_files\":[",
+                    counts.errors,
+                    counts.warnings,
+                    counts.notes,
+                    unreadable.len()
+                );
+                for (i, (file, reason)) in unreadable.iter().enumerate() {
+                    buf.push_str(if i == 0 { "\n{\"file\":" } else { ",\n{\"file\":" });
+                    eds::diag::push_json_str(buf, file);
+                    buf.push_str(",\"reason\":");
+                    eds::diag::push_json_str(buf, reason);
+                    buf.push('}');
+                }
+                buf.push_str("]}\n");
+            }),
+            Format::Sarif => super::sarif::finish(out, unreadable),
+        }
+    }
+
+    /// Reads a probed file with this thread's `Reader` and renders its part of the output into
+    /// `out`, after `lead` (told whether the part has anything in it); gives the file's counts.
+    /// One thread and several check a file through this alike. A thread's reader is made at its
+    /// first file with room for files of `room` bytes ([`eds::Reader::with_room`]): several
+    /// threads take the files largest first, so that 0 (room for the first file) does; one
+    /// thread gives the largest file's size.
+    fn check_file<S: Sink>(
+        &self,
+        probed: &eds::Probed<'_>,
+        room: usize,
+        out: &mut S,
+        lead: impl FnOnce(bool, &mut S),
+    ) -> std::io::Result<Counts> {
+        READER.with_borrow_mut(|reader| {
+            let reader = reader.get_or_insert_with(|| eds::Reader::with_room(room));
+            let parsed = reader.read_probed(probed, &self.options)?;
+            lead(writes_anything(&parsed, self.format, self.level), out);
+            let counts = render(&parsed, probed.path(), self.format, self.level, out);
+            reader.recycle(parsed);
+            Ok(counts)
+        })
+    }
+}
+
+/// A file probed, or why it could not be.
+type Probe<'a> = std::io::Result<eds::Probed<'a>>;
+
 /// The sizes of probed files (0 for one that could not be probed).
-fn sizes<'a>(probed: &'a [std::io::Result<eds::Probed<'_>>]) -> impl ExactSizeIterator<Item = u64> + 'a {
+fn sizes<'a>(probed: &'a [Probe<'_>]) -> impl ExactSizeIterator<Item = u64> + 'a {
     probed.iter().map(|p| p.as_ref().map_or(0, |p| p.len()))
 }
 
 /// A probed file, or why it could not be probed (the error repeated: an `io::Error` is not
 /// `Clone`, and the probes are shared by the threads).
-fn probed_file<'a, 'p>(probed: &'a std::io::Result<eds::Probed<'p>>) -> std::io::Result<&'a eds::Probed<'p>> {
+fn probed_file<'a, 'p>(probed: &'a Probe<'p>) -> std::io::Result<&'a eds::Probed<'p>> {
     probed.as_ref().map_err(|e| std::io::Error::new(e.kind(), e.to_string()))
 }
 
@@ -395,31 +345,6 @@ thread_local! {
     /// Each reading thread's [`eds::Reader`] (made at its first file): a file is read into the
     /// memory the thread's last file used (given back as soon as its report is rendered).
     static READER: std::cell::RefCell<Option<eds::Reader>> = const { std::cell::RefCell::new(None) };
-}
-
-/// Reads a probed file with this thread's `Reader` and renders its part of the output into
-/// `out`, after `lead` (told whether the part has anything in it); gives the file's counts.
-/// One thread and several check a file through this alike. A thread's reader is made at its
-/// first file with room for files of `room` bytes ([`eds::Reader::with_room`]): several
-/// threads take the files largest first, so that 0 (room for the first file) does; one
-/// thread gives the largest file's size.
-fn check_file<S: Sink>(
-    probed: &eds::Probed<'_>,
-    options: &eds::Options,
-    format: Format,
-    level: Level,
-    room: usize,
-    out: &mut S,
-    lead: impl FnOnce(bool, &mut S),
-) -> std::io::Result<Counts> {
-    READER.with_borrow_mut(|reader| {
-        let reader = reader.get_or_insert_with(|| eds::Reader::with_room(room));
-        let parsed = reader.read_probed(probed, options)?;
-        lead(writes_anything(&parsed, format, level), out);
-        let counts = render(&parsed, probed.path(), format, level, out);
-        reader.recycle(parsed);
-        Ok(counts)
-    })
 }
 
 /// The separator before a file's part of the output, when it has anything in it (`any`: a
@@ -503,39 +428,4 @@ fn summary(c: &Counts, level: Level) -> String {
         parts.push(part(c.notes, "note", Severity::Note, "--notes"));
     }
     if parts.is_empty() { "no problems".to_owned() } else { parts.join(", ") }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A report of one block shorter than `SMALL` comes back as a string of its own length and
-    /// leaves its block to the spare ones; a longer one keeps its blocks, in order; the text is
-    /// the same either way.
-    #[test]
-    fn small_reports_leave_their_block_at_once() {
-        let spare: Spare = std::sync::Mutex::new(Vec::new());
-        for len in [0, 1, 100, SMALL - 1, SMALL, FULL - 1, FULL, FULL + 1, BLOCK - 1, BLOCK, 3 * BLOCK + 5] {
-            spare.lock().unwrap().clear();
-            let mut blocks = Blocks::new(&spare);
-            let text: String = (0..len).map(|i| char::from(b'a' + (i % 26) as u8)).collect();
-            // Pieces of at most a few KiB, as diagnostics are.
-            for piece in text.as_bytes().chunks(3000) {
-                blocks.text().push_str(std::str::from_utf8(piece).unwrap());
-            }
-            let report = blocks.finish();
-            assert_eq!(report.concat(), text, "len {len}");
-            let spare_now = spare.lock().unwrap();
-            if len < SMALL {
-                assert_eq!(report.len(), 1);
-                assert!(report[0].capacity() < SMALL, "len {len}: capacity {}", report[0].capacity());
-                assert_eq!(spare_now.len(), 1, "len {len}");
-                assert!(spare_now[0].is_empty() && spare_now[0].capacity() >= BLOCK);
-            } else {
-                assert!(spare_now.is_empty(), "len {len}");
-                // (Pieces of at most `BLOCK - FULL` bytes never grow a block.)
-                assert!(report.iter().all(|b| b.capacity() == BLOCK), "len {len}");
-            }
-        }
-    }
 }

@@ -7,7 +7,6 @@ pub mod diff;
 pub mod dump;
 pub mod fmt;
 pub mod generate;
-mod place;
 pub mod sarif;
 
 use std::path::{Path, PathBuf};
@@ -31,117 +30,52 @@ pub fn read_or_report(path: &Path, options: &eds::Options) -> Option<eds::Parsed
 /// The number of threads to read files with: `--jobs` when given (at least 1), otherwise one
 /// per available core.
 pub fn jobs(requested: Option<usize>) -> usize {
-    requested.unwrap_or_else(cores).max(1)
-}
-
-/// The cores this process may use: [`std::thread::available_parallelism`], which also reads the
-/// process's CPU quota (cgroups), except where the process may run on two CPUs or fewer. There
-/// a quota could only lower the count to one, and finding it (five files of `/proc` and `/sys`
-/// read) cost 0.09 ms at the start of `odgen check`, more than a second thread under such a
-/// quota loses; the CPUs the process may run on are asked for with one system call.
-fn cores() -> usize {
-    match place::allowed_cpus() {
-        Some(n @ 1..=2) => n,
-        _ => std::thread::available_parallelism().map_or(1, usize::from),
-    }
+    requested.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from)).max(1)
 }
 
 /// `f(i, &items[i])` for every item on `jobs` threads, each result handed to `emit` on the
 /// calling thread in the items' order as soon as it and those before it are ready.
 ///
-/// The items need not be known when the threads are started: `find` runs once, on the calling
-/// thread, after the other `jobs - 1` threads are started and before any item is worked on, and
-/// gives the items and the order the threads take them in. What it takes to find them (asking
-/// the file system about every path given, listing folders, probing files) thus overlaps the
-/// start of the other threads, which on some machines takes longer than reading a file. The
-/// order is a permutation of the items' indices, e.g. the largest first, so that the last ones
-/// taken are small and the threads finish together (anything else is taken as the items' own
-/// order). Each thread takes the next unclaimed item; threads that find none left stop at once
-/// (the caller chooses `jobs` without knowing how many items there will be).
-///
-/// The calling thread is one of the threads (a thread fewer to start, and the one whose memory
-/// is already in use: each new thread's allocations start on fresh pages, each a page fault),
-/// and it hands out what is ready between its own items, so results are written and freed as
-/// the run goes rather than all held to the end.
-pub fn par_each<'a, T: Sync + 'a, R: Send>(
+/// The threads take the items in `order`, a permutation of their indices (e.g. the largest
+/// first, so that the last ones taken are small and the threads finish together; anything
+/// else is taken as the items' own order): each thread takes the next unclaimed item. The
+/// calling thread is one of them, and hands out what is ready between its own items, so that
+/// results are written and freed as the run goes rather than all held to the end. A panic in
+/// `f` or `emit` reaches the caller once every thread has stopped.
+pub fn par_each<T: Sync, R: Send>(
     jobs: usize,
-    find: impl FnOnce() -> (&'a [T], Vec<usize>),
+    items: &[T],
+    order: Vec<usize>,
     f: impl Fn(usize, &T) -> R + Sync,
     mut emit: impl FnMut(&T, R),
 ) {
     use std::sync::atomic::{AtomicUsize, Ordering};
-    use std::sync::{Condvar, Mutex, OnceLock};
-    let jobs = jobs.max(1);
-    // The items and the order to take them in, once `find` has given them (the threads
-    // started before wait for them).
-    let taken: OnceLock<(&'a [T], Vec<usize>)> = OnceLock::new();
+    use std::sync::{Condvar, Mutex};
+    let order = permutation_or_identity(order, items.len());
     let next = AtomicUsize::new(0);
     // The next item to work on (`None` when all are taken).
-    let claim = || {
-        let (items, order) = taken.wait();
-        order.get(next.fetch_add(1, Ordering::Relaxed)).and_then(|&i| Some((i, items.get(i)?)))
-    };
-    // The results not yet emitted, and whether the calling thread waits for one (a worker
-    // wakes it only then: a wake is a system call, and the calling thread only waits once it
-    // has no item left to work on).
-    // Also whether a worker stopped on a panic (its item never comes: the calling thread
-    // stops waiting, and passes the panic on).
-    // (Made once the items are found.)
-    let slots: Mutex<(Vec<Option<R>>, bool, bool)> = Mutex::new((Vec::new(), false, false));
+    let claim = || order.get(next.fetch_add(1, Ordering::Relaxed)).map(|&i| (i, &items[i]));
+    // The results not yet emitted, and whether a worker stopped on a panic (its item never
+    // comes: the calling thread stops waiting, and the scope passes the panic on).
+    let slots: Mutex<(Vec<Option<R>>, bool)> = Mutex::new((items.iter().map(|_| None).collect(), false));
     let filled = Condvar::new();
     let put = |i: usize, r: R| {
-        let mut s = slots.lock().unwrap_or_else(|e| e.into_inner());
-        s.0[i] = Some(r);
-        if s.1 {
-            filled.notify_one();
-        }
+        slots.lock().unwrap_or_else(|e| e.into_inner()).0[i] = Some(r);
+        filled.notify_one();
     };
     // Tells the calling thread, when a worker unwinds, that it is to wait no more.
-    struct Stopped<'a, R>(&'a Mutex<(Vec<Option<R>>, bool, bool)>, &'a Condvar);
+    struct Stopped<'a, R>(&'a Mutex<(Vec<Option<R>>, bool)>, &'a Condvar);
     impl<R> Drop for Stopped<'_, R> {
         fn drop(&mut self) {
             if std::thread::panicking() {
-                self.0.lock().unwrap_or_else(|e| e.into_inner()).2 = true;
+                self.0.lock().unwrap_or_else(|e| e.into_inner()).1 = true;
                 self.1.notify_one();
             }
         }
     }
-    // Each worker first runs on another CPU than this thread's (see `place`), then anywhere.
-    // (Steering needs the thread's handle before it runs, which only an unscoped handle gives:
-    // the workers are joined by `Workers`, before anything they borrow goes, on every path.)
-    let steer = place::Steer::others();
-    let steered: Vec<place::Steered> = (1..jobs).map(|_| place::Steered::default()).collect();
-    let work = || {
-        let _stopped = Stopped(&slots, &filled);
-        while let Some((i, item)) = claim() {
-            put(i, f(i, item));
-        }
-    };
-    let mut workers = Workers { threads: Vec::with_capacity(jobs - 1), taken: &taken };
-    for state in &steered {
-        let run = || {
-            steer.release(state);
-            taken.wait();
-            work();
-        };
-        // SAFETY: `run` borrows only what this function owns or borrows (`steer`, `state`,
-        // `work` and what it borrows), all declared before `workers`, which joins the thread
-        // when it is dropped (before them) if it was not joined below.
-        match unsafe { std::thread::Builder::new().spawn_unchecked(run) } {
-            Ok(thread) => {
-                steer.steer(&thread, state);
-                workers.threads.push(thread);
-            }
-            // (The calling thread and the workers started take every item all the same.)
-            Err(_) => break,
-        }
-    }
-    let (items, order) = find();
-    slots.lock().unwrap_or_else(|e| e.into_inner()).0 = items.iter().map(|_| None).collect();
-    let _ = taken.set((items, permutation_or_identity(order, items.len())));
-    // The first result not yet handed to `emit`.
-    let mut done = 0;
-    let take_ready = |wait: bool, done: &mut usize, emit: &mut dyn FnMut(&T, R)| {
+    // Hands `emit` every result ready in the items' order from `done` on; with `wait`, waits
+    // for the rest (until a worker stops on a panic).
+    let emit_ready = |wait: bool, done: &mut usize, emit: &mut dyn FnMut(&T, R)| {
         let mut s = slots.lock().unwrap_or_else(|e| e.into_inner());
         while *done < items.len() {
             match s.0[*done].take() {
@@ -152,47 +86,32 @@ pub fn par_each<'a, T: Sync + 'a, R: Send>(
                     *done += 1;
                     s = slots.lock().unwrap_or_else(|e| e.into_inner());
                 }
-                // (A worker stopped on a panic: it is passed on once the workers are joined.)
-                None if s.2 => break,
-                None if wait => {
-                    // (Set under the lock a worker takes to put a result: none is missed.)
-                    s.1 = true;
-                    s = filled.wait(s).unwrap_or_else(|e| e.into_inner());
-                }
-                None => break,
+                None if s.1 || !wait => break,
+                None => s = filled.wait(s).unwrap_or_else(|e| e.into_inner()),
             }
         }
     };
-    while let Some((i, item)) = claim() {
-        let r = f(i, item);
-        put(i, r);
-        take_ready(false, &mut done, &mut emit);
-    }
-    take_ready(true, &mut done, &mut emit);
-    // A worker only panics if `f` does, which is a bug to surface, not an input error.
-    while let Some(w) = workers.threads.pop() {
-        if let Err(e) = w.join() {
-            std::panic::resume_unwind(e);
+    std::thread::scope(|scope| {
+        for _ in 1..jobs.min(items.len()) {
+            let spawned = std::thread::Builder::new().spawn_scoped(scope, || {
+                let _stopped = Stopped(&slots, &filled);
+                while let Some((i, item)) = claim() {
+                    put(i, f(i, item));
+                }
+            });
+            // (The calling thread and the workers started take every item all the same.)
+            if spawned.is_err() {
+                break;
+            }
         }
-    }
-}
-
-/// The worker threads of [`par_each`], joined when dropped: if the calling thread unwinds
-/// before it joins them, they are told there is nothing (more) to take and are waited for, so
-/// that none outlives what it borrows.
-struct Workers<'a, 'b, T> {
-    threads: Vec<std::thread::JoinHandle<()>>,
-    taken: &'a std::sync::OnceLock<(&'b [T], Vec<usize>)>,
-}
-
-impl<T> Drop for Workers<'_, '_, T> {
-    fn drop(&mut self) {
-        // (A no-op when the items were found: the workers then run out of them by themselves.)
-        let _ = self.taken.set((&[], Vec::new()));
-        for w in self.threads.drain(..) {
-            let _ = w.join();
+        // The first result not yet handed to `emit`.
+        let mut done = 0;
+        while let Some((i, item)) = claim() {
+            put(i, f(i, item));
+            emit_ready(false, &mut done, &mut emit);
         }
-    }
+        emit_ready(true, &mut done, &mut emit);
+    });
 }
 
 /// `order` if it is a permutation of `0..n` (every index once), otherwise `0..n`: an order that
@@ -326,9 +245,7 @@ impl Stream {
         Stream { buf: String::new() }
     }
 
-    /// The buffer, made at the first text rather than with the stream, so that it comes from
-    /// the memory the command has by then: for `odgen check`, the arena once it is open
-    /// (`crate::arena`), rather than fresh pages of its own (17 page faults).
+    /// The buffer, made at the first text.
     fn buffer(&mut self) -> &mut String {
         if self.buf.capacity() == 0 {
             self.buf.reserve_exact(Self::BLOCK + 4096);
@@ -416,21 +333,12 @@ pub(crate) use outln;
 mod tests {
     use super::*;
 
-    /// `--jobs` is taken as given (at least one); otherwise the cores: std's count where the
-    /// process may run on more than two CPUs, the CPUs' own count where on one or two.
+    /// `--jobs` is taken as given (at least one); otherwise one thread per core.
     #[test]
     fn jobs_are_the_given_number_or_the_cores() {
         assert_eq!(jobs(Some(0)), 1);
         assert_eq!(jobs(Some(3)), 3);
-        assert_eq!(jobs(None), cores());
-        let std_count = std::thread::available_parallelism().map_or(1, usize::from);
-        match place::allowed_cpus() {
-            Some(affinity @ ..=2) => {
-                assert_eq!(cores(), affinity);
-                assert!(std_count <= affinity);
-            }
-            _ => assert_eq!(cores(), std_count),
-        }
+        assert_eq!(jobs(None), std::thread::available_parallelism().map_or(1, usize::from));
     }
 
     /// The order is a permutation of the indices, by size from the largest, and items of one
@@ -479,7 +387,8 @@ mod tests {
                     let mut emitted = Vec::new();
                     par_each(
                         jobs,
-                        || (&items[..], order.clone()),
+                        &items,
+                        order.clone(),
                         |at, &i| {
                             assert_eq!(at, i);
                             calls.fetch_add(1, Ordering::Relaxed);
@@ -507,7 +416,8 @@ mod tests {
             let started = std::sync::Mutex::new(Vec::new());
             par_each(
                 jobs,
-                || (&items[..], order.clone()),
+                &items,
+                order.clone(),
                 |_, &i| started.lock().unwrap().push((std::thread::current().id(), i)),
                 |_, ()| {},
             );
@@ -526,8 +436,8 @@ mod tests {
     }
 
     /// The calling thread, once it has no item left, waits for the workers' results and is
-    /// woken for each (the workers wake it only when it waits): the workers are made slow, so
-    /// that it waits, in many rounds. A missed wake would leave it waiting: the run is timed.
+    /// woken for each: the workers are made slow, so that it waits, in many rounds. A missed
+    /// wake would leave it waiting: the run is timed.
     #[test]
     fn par_each_waits_for_slow_workers_and_is_woken() {
         let (tx, rx) = std::sync::mpsc::channel();
@@ -539,7 +449,8 @@ mod tests {
                     let mut emitted = Vec::new();
                     par_each(
                         jobs,
-                        || (&items[..], (0..items.len()).collect()),
+                        &items,
+                        (0..items.len()).collect(),
                         |_, &i| {
                             // (The calling thread slow enough for the workers to start and
                             // take items, the workers slower still.)
@@ -557,38 +468,6 @@ mod tests {
         rx.recv_timeout(std::time::Duration::from_secs(60)).expect("par_each should not wait for ever");
     }
 
-    /// The items may be found once the threads are started (the threads wait for them), and
-    /// there may be fewer of them than threads, or none: each is worked on once, in any case.
-    #[test]
-    fn par_each_finds_its_items_once_its_threads_are_started() {
-        for n in [0usize, 1, 3, 20] {
-            let items: Vec<usize> = (0..n).collect();
-            for jobs in [1usize, 2, 8] {
-                let calls = std::sync::atomic::AtomicUsize::new(0);
-                let found = std::sync::atomic::AtomicBool::new(false);
-                let mut emitted = Vec::new();
-                par_each(
-                    jobs,
-                    || {
-                        // (Long enough for the other threads to be waiting for the items.)
-                        std::thread::sleep(std::time::Duration::from_millis(2));
-                        found.store(true, std::sync::atomic::Ordering::Relaxed);
-                        (&items[..], (0..n).rev().collect())
-                    },
-                    |_, &i| {
-                        // Each thread works once the items are found.
-                        assert!(found.load(std::sync::atomic::Ordering::Relaxed));
-                        calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        i + 10
-                    },
-                    |&i, r| emitted.push((i, r)),
-                );
-                assert_eq!(calls.into_inner(), n, "n {n} jobs {jobs}");
-                assert_eq!(emitted, items.iter().map(|&i| (i, i + 10)).collect::<Vec<_>>(), "n {n} jobs {jobs}");
-            }
-        }
-    }
-
     /// An order that is no permutation of the items (an index missing, repeated or out of
     /// range) is taken as the items' own order: every item is still worked on once.
     #[test]
@@ -597,7 +476,7 @@ mod tests {
         for bad in [vec![], vec![0, 1, 2], vec![0; 9], vec![8, 7, 6, 5, 4, 3, 2, 1, 99], (0..10).collect()] {
             for jobs in [1usize, 3] {
                 let mut emitted = Vec::new();
-                par_each(jobs, || (&items[..], bad.clone()), |_, &i| i + 1, |&i, r| emitted.push((i, r)));
+                par_each(jobs, &items, bad.clone(), |_, &i| i + 1, |&i, r| emitted.push((i, r)));
                 assert_eq!(emitted, items.iter().map(|&i| (i, i + 1)).collect::<Vec<_>>(), "{bad:?} jobs {jobs}");
             }
         }
@@ -605,19 +484,19 @@ mod tests {
         assert_eq!(permutation_or_identity(vec![2, 2, 1], 3), vec![0, 1, 2]);
     }
 
-    /// A panic in `order`, in `f` (on any thread) or in `emit` reaches the caller once every
-    /// worker has stopped (none outlives what it borrows, none waits for ever for an order
-    /// that never comes).
+    /// A panic in `f` (on any thread) or in `emit` reaches the caller once every worker has
+    /// stopped (none outlives what it borrows).
     #[test]
     fn par_each_panics_only_once_its_workers_have_stopped() {
         let items: Vec<usize> = (0..40).collect();
         let running = std::sync::atomic::AtomicUsize::new(0);
-        for case in ["order", "f", "emit"] {
+        for case in ["f", "emit"] {
             for jobs in [2usize, 4] {
                 let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
                     par_each(
                         jobs,
-                        || (&items[..], if case == "order" { panic!("order") } else { (0..40).collect() }),
+                        &items,
+                        (0..40).collect(),
                         |_, &i| {
                             running.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
                             std::thread::sleep(std::time::Duration::from_micros(200));
