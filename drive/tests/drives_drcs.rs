@@ -12,9 +12,9 @@ use drive::drives::master::{Master, SdoError};
 use drive::drives::{Cia402App, DeviceApps};
 use drive::node::{DeviceKind, Node, NodeConfig, NodeStorage, Sim};
 use drive::trace::Trace;
-use drive::transport::CanFrame;
 use generated::drcs::Dictionary;
 use generated::drcs::units::{Dimension, Quantity, Ratio, Unit, Units};
+use od_bus::CanFrame;
 use od_runtime::NodeId;
 use od_runtime::cia402::State;
 

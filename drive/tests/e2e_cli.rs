@@ -6,7 +6,7 @@ use std::io::{BufRead, BufReader, Read};
 use std::process::{Child, ChildStderr, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
-use drive::transport::{CanFrame, Endpoint, SocketcandClient};
+use od_bus::{CanFrame, Endpoint, SocketcandClient};
 
 const WAIT: Duration = Duration::from_secs(10);
 

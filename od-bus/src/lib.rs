@@ -1,27 +1,36 @@
-//! The buses a simulated device is reached through.
+//! CAN buses for the simulated devices and for masters, each opened from one address string.
 //!
-//! Everything a device needs from a bus is the [`Endpoint`] trait: put a frame on the bus, wait
-//! for the next frame somebody else put there. The implementations:
+//! | address | bus | blocking | async (feature `tokio`) |
+//! |---|---|---|---|
+//! | `mem://NAME` | an in-memory bus of this process, shared by name ([`MemoryBus::named`]) | [`LocalEndpoint`] | `tokio::Bus` on the same bus |
+//! | `socketcand://HOST:PORT/CHANNEL` (alias `tcp://`) | a channel of a socketcand server over TCP: a [`Hub`] (ours) or a real socketcand | [`SocketcandClient`] | `tokio::Bus`, reconnecting |
+//! | `socketcan://IFACE` (feature `socketcan`, Linux) | a kernel CAN interface (`can0`, `vcan0`) | `socketcan::SocketCan` | `tokio::Bus` |
 //!
-//! | type | bus | use |
-//! |---|---|---|
-//! | [`LocalEndpoint`] from [`MemoryBus`] | in memory, no threads needed | unit and integration tests, deterministic simulations |
-//! | [`LocalEndpoint`] from [`Hub::attach`] | a channel of a socketcand hub in this process | `drive-sim` devices served to real masters |
-//! | [`SocketcandClient`] | a channel of a socketcand server over TCP (our hub or a real socketcand) | a device joining a hub run elsewhere (`--bus tcp://HOST:PORT/CHANNEL`) |
-//! | `socketcan::SocketCan` (feature `socketcan`, Linux) | a kernel CAN interface (`can0`, `vcan0`) | real hardware |
+//! [`open`] (blocking) and `tokio::Bus::open` (async) take the address; [`BusAddr`] is its
+//! parsed form. Besides these: [`MemoryBus`] for a private bus of a test, [`Hub`] (a
+//! socketcand-compatible TCP hub, what `drive-sim hub` runs) with [`Hub::attach`] for endpoints
+//! in the hub's own process, [`socketcand`] (the protocol, sans I/O) and [`wire`] (an emulated
+//! bus of a given bit rate). One frame type, [`CanFrame`], classic CAN with standard and
+//! extended identifiers, goes everywhere.
 //!
-//! Like CAN itself, every bus here broadcasts: a frame reaches every other endpoint of the bus,
-//! never its sender, in the order it was sent.
+//! Everything a blocking device needs from a bus is the [`Endpoint`] trait: put a frame on the
+//! bus, wait for the next frame somebody else put there. Like CAN itself, every bus here
+//! broadcasts: a frame reaches every other endpoint of the bus, never its sender, in the order
+//! it was sent.
+//!
+//! Layers, each using only those below it: `frame`, `timestamp`, `queue`; `sink` (the members
+//! of a channel); `wire`; `bus` (channels, in-process endpoints); `socketcand` (the protocol);
+//! `client`, `hub`; `addr`; then the feature-gated `socketcan` and `tokio`.
 //!
 //! # Writing a device loop
 //!
 //! A device owns one `Box<dyn Endpoint>` (or a generic `E: Endpoint`) and alternates between
-//! handling received frames and its periodic work. [`BusSpec`] turns a command-line string into
+//! handling received frames and its periodic work. [`open`] turns a command-line string into
 //! an endpoint:
 //!
 //! ```
 //! use std::time::{Duration, Instant};
-//! use drive::transport::{CanFrame, Endpoint, MemoryBus, TransportError};
+//! use od_bus::{CanFrame, Endpoint, MemoryBus, TransportError};
 //!
 //! /// Answers every NMT "start" (0x000 [01 id]) with a boot-up message: a stand-in for a device.
 //! fn run(bus: &mut dyn Endpoint, node: u8, until: Instant) -> Result<(), TransportError> {
@@ -49,24 +58,31 @@
 //! server closed the connection) and the loop should end; other errors are I/O failures of the
 //! underlying socket.
 
+#![deny(missing_docs)]
+
+mod addr;
 mod bus;
 mod client;
 mod frame;
 mod hub;
 mod queue;
+mod sink;
 #[cfg(all(feature = "socketcan", target_os = "linux"))]
 pub mod socketcan;
 pub mod socketcand;
-mod spec;
+mod timestamp;
+#[cfg(feature = "tokio")]
+pub mod tokio;
 pub mod wire;
 
 use std::time::Duration;
 
+pub use addr::{BusAddr, BusAddrError, DEFAULT_CHANNEL, open};
 pub use bus::{LocalEndpoint, MemoryBus};
 pub use client::SocketcandClient;
 pub use frame::{CanFrame, FrameError};
 pub use hub::{Hub, HubConfig, HubEvent, HubObserver};
-pub use spec::{BusSpec, BusSpecError, DEFAULT_CHANNEL};
+pub use timestamp::Timestamp;
 
 /// What can go wrong on a bus.
 #[derive(Debug, thiserror::Error)]
@@ -92,6 +108,16 @@ pub enum TransportError {
     /// The requested transport is not compiled in or not available on this platform.
     #[error("{0}")]
     Unavailable(String),
+    /// The address string is not one of the accepted forms.
+    #[error(transparent)]
+    Address(#[from] BusAddrError),
+    /// The connection is down and being restored (the async socketcand client, which
+    /// reconnects): this frame was not sent; sending again once the link is back works.
+    #[error("the bus connection is down ({reason}); reconnecting")]
+    Down {
+        /// Why the link went down.
+        reason: String,
+    },
 }
 
 impl TransportError {
