@@ -3,14 +3,14 @@
 use std::fmt;
 use std::str::FromStr;
 
+use crate::bus::MemoryBus;
+use crate::client::SocketcandClient;
+use crate::endpoint::Endpoint;
+use crate::error::{BusAddrError, TransportError};
 use crate::socketcand::parse_channel;
-use crate::{Endpoint, MemoryBus, SocketcandClient, TransportError};
 
 /// Channel a socketcand address opens when it names none.
 pub const DEFAULT_CHANNEL: &str = "can0";
-
-/// The accepted forms, as error messages name them.
-const FORMS: &str = "socketcand://HOST:PORT/CHANNEL, socketcan://IFACE or mem://NAME";
 
 /// Longest Linux network interface name (IFNAMSIZ less the NUL).
 const MAX_INTERFACE_LEN: usize = 15;
@@ -61,30 +61,12 @@ pub enum BusAddr {
     },
 }
 
-/// Text that is not a [`BusAddr`]; the message names the accepted forms.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("bad bus address '{text}': {reason} (expected {FORMS})")]
-pub struct BusAddrError {
-    text: String,
-    reason: &'static str,
-}
-
-impl BusAddrError {
-    /// What was wrong with the text.
-    pub fn reason(&self) -> &'static str {
-        self.reason
-    }
-}
-
 impl FromStr for BusAddr {
     type Err = BusAddrError;
 
     fn from_str(text: &str) -> Result<Self, BusAddrError> {
         // The text is echoed in the message: printable and short.
-        let fail = |reason| BusAddrError {
-            text: text.chars().take(80).map(|c| if c.is_control() { '?' } else { c }).collect(),
-            reason,
-        };
+        let fail = |reason| BusAddrError::new(text, reason);
         if let Some(rest) = text.strip_prefix("socketcand://").or_else(|| text.strip_prefix("tcp://")) {
             let (addr, channel) = rest.split_once('/').unwrap_or((rest, DEFAULT_CHANNEL));
             let (host, port) = split_host_port(addr).map_err(fail)?;
@@ -198,6 +180,7 @@ pub(crate) fn unavailable(interface: &str) -> TransportError {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::error::FORMS;
 
     fn socketcand(host: &str, port: u16, channel: &str) -> BusAddr {
         BusAddr::Socketcand { host: host.into(), port, channel: channel.into() }

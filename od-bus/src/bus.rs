@@ -12,11 +12,13 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock, Weak};
 use std::time::Duration;
 
+use crate::endpoint::Endpoint;
+use crate::error::TransportError;
+use crate::frame::CanFrame;
 use crate::queue::{BoundedQueue, PushError, lock};
 use crate::sink::{Delivery, MemberId, Sink, next_member_id};
 use crate::timestamp::Timestamp;
 use crate::wire::Wire;
-use crate::{CanFrame, Endpoint, TransportError};
 
 /// One CAN bus: every member receives what the others relay.
 ///

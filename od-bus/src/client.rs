@@ -7,8 +7,10 @@ use std::io::{self, Read, Write};
 use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
 use std::time::{Duration, Instant};
 
+use crate::endpoint::Endpoint;
+use crate::error::TransportError;
+use crate::frame::CanFrame;
 use crate::socketcand::{Decoder, Message, parse_channel};
-use crate::{CanFrame, Endpoint, TransportError};
 
 /// The client's side of a socketcand session without the I/O: what to say in the handshake, and
 /// what the server's messages mean. The blocking [`SocketcandClient`] and the async client

@@ -34,11 +34,12 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use crate::bus::{Channel, LocalEndpoint};
+use crate::error::TransportError;
+use crate::frame::CanFrame;
 use crate::queue::{BoundedQueue, PushError, lock};
 use crate::sink::{Delivery, MemberId, Sink, next_member_id};
 use crate::socketcand::{Decoder, Message, ParseError, parse_channel};
 use crate::timestamp::Timestamp;
-use crate::{CanFrame, TransportError};
 
 /// Receives every [`HubEvent`]; called from the hub's threads, so it must be quick.
 pub type HubObserver = Arc<dyn Fn(&HubEvent) + Send + Sync>;

@@ -63,6 +63,8 @@
 mod addr;
 mod bus;
 mod client;
+mod endpoint;
+mod error;
 mod frame;
 mod hub;
 mod queue;
@@ -75,116 +77,11 @@ mod timestamp;
 pub mod tokio;
 pub mod wire;
 
-use std::time::Duration;
-
-pub use addr::{BusAddr, BusAddrError, DEFAULT_CHANNEL, open};
+pub use addr::{BusAddr, DEFAULT_CHANNEL, open};
 pub use bus::{LocalEndpoint, MemoryBus};
 pub use client::SocketcandClient;
+pub use endpoint::Endpoint;
+pub use error::{BusAddrError, TransportError};
 pub use frame::{CanFrame, FrameError};
 pub use hub::{Hub, HubConfig, HubEvent, HubObserver};
 pub use timestamp::Timestamp;
-
-/// What can go wrong on a bus.
-#[derive(Debug, thiserror::Error)]
-pub enum TransportError {
-    /// The bus is gone for good: the hub stopped, or the server closed the connection.
-    #[error("the bus was closed")]
-    Closed,
-    /// The underlying socket failed.
-    #[error("{context}: {source}")]
-    Io {
-        /// What was being done.
-        context: String,
-        /// The OS error.
-        #[source]
-        source: std::io::Error,
-    },
-    /// The server broke the protocol or refused a request (socketcand handshake).
-    #[error("protocol error: {0}")]
-    Protocol(String),
-    /// A frame received from the OS or a peer that is not a valid CAN frame.
-    #[error("invalid frame: {0}")]
-    Frame(#[from] FrameError),
-    /// The requested transport is not compiled in or not available on this platform.
-    #[error("{0}")]
-    Unavailable(String),
-    /// The address string is not one of the accepted forms.
-    #[error(transparent)]
-    Address(#[from] BusAddrError),
-    /// The connection is down and being restored (the async socketcand client, which
-    /// reconnects): this frame was not sent; sending again once the link is back works.
-    #[error("the bus connection is down ({reason}); reconnecting")]
-    Down {
-        /// Why the link went down.
-        reason: String,
-    },
-}
-
-impl TransportError {
-    pub(crate) fn io(context: impl Into<String>, source: std::io::Error) -> Self {
-        Self::Io { context: context.into(), source }
-    }
-}
-
-/// One attachment point to a CAN bus: what a simulated device (or a test's master) talks
-/// through.
-///
-/// Implementations broadcast like CAN: a sent frame reaches every other endpoint on the bus,
-/// not the sender itself. Frames are received in the order they were sent on the bus.
-pub trait Endpoint: Send {
-    /// Puts a frame on the bus. In-process endpoints never block; socket endpoints block only
-    /// as long as the OS send buffer is full.
-    fn send(&mut self, frame: CanFrame) -> Result<(), TransportError>;
-
-    /// Waits up to `timeout` for the next frame sent by another endpoint. `Ok(None)` means the
-    /// time ran out; `Duration::ZERO` polls without waiting.
-    fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<CanFrame>, TransportError>;
-
-    /// Takes the next frame if one is already there, without waiting.
-    fn try_recv(&mut self) -> Result<Option<CanFrame>, TransportError> {
-        self.recv_timeout(Duration::ZERO)
-    }
-
-    /// Frames lost on the way to this endpoint so far: its receive queue overflowed, or the
-    /// hub dropped them because this endpoint read more slowly than the bus ran. 0 where the
-    /// transport cannot tell.
-    fn lost(&self) -> u64 {
-        0
-    }
-}
-
-impl<E: Endpoint + ?Sized> Endpoint for Box<E> {
-    fn send(&mut self, frame: CanFrame) -> Result<(), TransportError> {
-        (**self).send(frame)
-    }
-
-    fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<CanFrame>, TransportError> {
-        (**self).recv_timeout(timeout)
-    }
-
-    fn try_recv(&mut self) -> Result<Option<CanFrame>, TransportError> {
-        (**self).try_recv()
-    }
-
-    fn lost(&self) -> u64 {
-        (**self).lost()
-    }
-}
-
-impl<E: Endpoint + ?Sized> Endpoint for &mut E {
-    fn send(&mut self, frame: CanFrame) -> Result<(), TransportError> {
-        (**self).send(frame)
-    }
-
-    fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<CanFrame>, TransportError> {
-        (**self).recv_timeout(timeout)
-    }
-
-    fn try_recv(&mut self) -> Result<Option<CanFrame>, TransportError> {
-        (**self).try_recv()
-    }
-
-    fn lost(&self) -> u64 {
-        (**self).lost()
-    }
-}

@@ -4,7 +4,7 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use crate::CanFrame;
+use crate::frame::CanFrame;
 use crate::timestamp::Timestamp;
 
 /// Identifies one member of a channel (an endpoint or a TCP client), unique in the process.

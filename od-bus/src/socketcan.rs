@@ -19,7 +19,9 @@ use std::time::{Duration, Instant};
 
 use socketcan::{EmbeddedFrame, ExtendedId, Frame as _, Socket, StandardId};
 
-use crate::{CanFrame, Endpoint, FrameError, TransportError};
+use crate::endpoint::Endpoint;
+use crate::error::TransportError;
+use crate::frame::{CanFrame, FrameError};
 
 /// An [`Endpoint`] on a Linux CAN interface.
 ///

@@ -35,8 +35,7 @@
 use std::fmt::{self, Write as _};
 use std::str::FromStr;
 
-use crate::CanFrame;
-use crate::frame::{FrameError, hex_byte, hex_digit};
+use crate::frame::{CanFrame, FrameError, hex_byte, hex_digit};
 pub use crate::timestamp::Timestamp;
 
 /// Longest message accepted, from `<` to `>` inclusive. The longest valid message, a `frame`

@@ -40,14 +40,17 @@ use ::tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
 use ::tokio::sync::{Mutex, Notify, mpsc, oneshot, watch};
 use ::tokio::time::{Instant, sleep, timeout_at};
 
+use crate::addr::BusAddr;
 use crate::addr::host_for_connect;
 use crate::bus::Channel;
+use crate::bus::MemoryBus;
 use crate::client::{ClientSession, map_io};
+use crate::error::TransportError;
+use crate::frame::CanFrame;
 use crate::queue::BoundedQueue;
 use crate::sink::{Delivery, MemberId, Sink, next_member_id};
 use crate::socketcand::Message;
 use crate::timestamp::Timestamp;
-use crate::{BusAddr, CanFrame, MemoryBus, TransportError};
 
 /// How a [`Bus`] is opened.
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -17,7 +17,7 @@ use std::collections::VecDeque;
 use std::sync::{Condvar, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
-use crate::CanFrame;
+use crate::frame::CanFrame;
 use crate::queue::lock;
 use crate::sink::MemberId;
 use crate::timestamp::Timestamp;
