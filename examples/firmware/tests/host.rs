@@ -2,7 +2,7 @@
 //! `drive` crate, through an `embedded_can::nb::Can` adapter, driven by a master made of
 //! plain frames (NMT, SDO, SYNC), exactly as the binary runs it on CAN1.
 
-use drive::transport::{CanFrame, Endpoint, LocalEndpoint, MemoryBus};
+use od_bus::{CanFrame, Endpoint, LocalEndpoint, MemoryBus};
 use firmware::Firmware;
 use od_runtime::{Frame, NodeId};
 
