@@ -5,7 +5,7 @@ use eds::model::{Access, DataType, Model};
 use proc_macro2::TokenStream;
 use quote::{format_ident, quote};
 
-pub(crate) use crate::entry::{display_name, location, rust_type};
+use crate::entry::{display_name, location, rust_type};
 use crate::lit;
 use crate::plan::{Def, PEntry, Plan, Ty};
 use crate::support::rt;
