@@ -29,6 +29,10 @@
 //! an SDO abort, never a panic; there is no allocation and every loop is bounded by a table
 //! size. The application plugs in through [`App`] (a veto on writes and a stream of [`Event`]s)
 //! and [`Storage`] (persisting the records that 1010h saves).
+//!
+//! The other side of the bus is in [`master`]: the client services (SDO client, NMT master,
+//! heartbeat consumer and node guarding, EMCY consumer, SYNC producer, PDO packing) as sans-IO
+//! state machines on the same frame, time and abort-code types.
 #![no_std]
 #![deny(missing_docs)]
 
@@ -42,6 +46,7 @@ pub mod crc;
 mod device;
 pub mod emcy;
 pub mod frame;
+pub mod master;
 pub mod nmt;
 pub mod od;
 pub mod pdo;
