@@ -220,7 +220,8 @@ impl<const N: usize> NodeMonitor<N> {
                 let t = b & 0x80 != 0;
                 toggle_error = t != slot.toggle;
                 slot.toggle = !t;
-                if !toggle_error && guard_time > 0 && life_time_factor > 0 {
+                // An answer with a wrong toggle bit is reported, but the node did answer.
+                if guard_time > 0 && life_time_factor > 0 {
                     slot.lost_at = Some(now.saturating_add(guard_time.saturating_mul(Micros::from(life_time_factor))));
                 }
             }

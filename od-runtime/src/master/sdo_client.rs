@@ -39,6 +39,11 @@ pub const DEFAULT_TIMEOUT: Micros = 1_000_000;
 /// Largest block size of a block transfer (segments per block), and the client's default.
 pub const MAX_BLOCK_SIZE: u8 = 127;
 
+/// Block transfers acknowledged with no progress this many times in a row are aborted with
+/// [`AbortCode::GENERAL_ERROR`]: a bus that always loses the same segment would otherwise
+/// keep a transfer alive for ever, each block answered within the timeout.
+pub const MAX_STALLED_BLOCKS: u8 = 8;
+
 /// How a transfer moves its data.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
 pub enum Mode {
@@ -260,6 +265,13 @@ pub struct SdoClient<B> {
     buf: Option<B>,
     deadline: Micros,
     out: Queue,
+    /// Frames of the running transfer in `out`, not sent yet, and whether any was sent.
+    unsent: u8,
+    on_bus: bool,
+    /// Blocks in a row acknowledged with no segment taken.
+    stalls: u8,
+    /// The last block upload segment taken, to recognise it if CAN delivers it twice.
+    last_seg: [u8; 8],
 }
 
 fn mux_of(d: &[u8; 8]) -> (u16, u8) {
@@ -298,6 +310,10 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
             buf: None,
             deadline: 0,
             out: Queue::new(),
+            unsent: 0,
+            on_bus: false,
+            stalls: 0,
+            last_seg: [0; 8],
         }
     }
 
@@ -367,6 +383,10 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
         self.size = None;
         self.crc = false;
         self.buf = Some(buf);
+        self.last_seg = [0; 8];
+        self.unsent = 0;
+        self.on_bus = false;
+        self.stalls = 0;
         self.deadline = now.saturating_add(self.timeout);
         Ok(())
     }
@@ -377,10 +397,10 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
         self.start(Direction::Upload, index, sub, buf, now)?;
         if mode == Mode::Block {
             // cc = 1: the client checks a CRC whenever the server sends one.
-            self.out.push(request(0xA4, index, sub, [self.blksize, self.pst, 0, 0]));
+            self.push(request(0xA4, index, sub, [self.blksize, self.pst, 0, 0]));
             self.state = State::BlockUpInit;
         } else {
-            self.out.push(request(0x40, index, sub, [0; 4]));
+            self.push(request(0x40, index, sub, [0; 4]));
             self.state = State::UpInit;
         }
         Ok(())
@@ -396,15 +416,15 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
             Mode::Normal if (1..=4).contains(&len) => {
                 let mut tail = [0u8; 4];
                 tail[..len].copy_from_slice(self.data());
-                self.out.push(request(0x23 | (((4 - len) as u8) << 2), index, sub, tail));
+                self.push(request(0x23 | (((4 - len) as u8) << 2), index, sub, tail));
                 self.state = State::DownInit { expedited: true };
             }
             Mode::Normal | Mode::Segmented => {
-                self.out.push(request(0x21, index, sub, size));
+                self.push(request(0x21, index, sub, size));
                 self.state = State::DownInit { expedited: false };
             }
             Mode::Block => {
-                self.out.push(request(0xC6, index, sub, size));
+                self.push(request(0xC6, index, sub, size));
                 self.state = State::BlockDownInit;
             }
         }
@@ -420,6 +440,12 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
         Some(self.fail(code))
     }
 
+    /// Queues a frame of the running transfer.
+    fn push(&mut self, d: [u8; 8]) {
+        self.out.push(d);
+        self.unsent = self.unsent.saturating_add(1).min(self.out.len);
+    }
+
     fn data(&self) -> &[u8] {
         self.buf.as_ref().map_or(&[], |b| b.as_ref())
     }
@@ -430,19 +456,27 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
 
     fn finish(&mut self, result: Result<usize, SdoError>) -> Done<B> {
         self.state = State::Idle;
+        // Frames queued from here on (an end response, an abort) belong to no transfer.
+        self.unsent = 0;
         let buf = self.buf.take().expect("a running transfer holds its buffer");
         Done { node: self.node, direction: self.direction, index: self.index, sub: self.sub, buf, result }
     }
 
     fn fail(&mut self, code: AbortCode) -> Done<B> {
-        self.out.push(request(0x80, self.index, self.sub, code.0.to_le_bytes()));
+        if self.on_bus {
+            self.push(request(0x80, self.index, self.sub, code.0.to_le_bytes()));
+        } else {
+            // Nothing of this transfer reached the bus: withdraw its request, send no abort.
+            self.out.len -= self.unsent;
+        }
         self.finish(Err(SdoError::Client(code)))
     }
 
     /// Takes a received frame. Frames on other COB-IDs are ignored, so a caller may pass every
     /// frame of the bus. Returns the end of the transfer when this frame ends it.
     pub fn on_frame(&mut self, frame: &Frame, now: Micros) -> Option<Done<B>> {
-        if frame.id() != self.rx || frame.is_rtr() || frame.len() != 8 || self.state == State::Idle {
+        // Before the request went out, no answer can be this transfer's.
+        if frame.id() != self.rx || frame.is_rtr() || frame.len() != 8 || self.state == State::Idle || !self.on_bus {
             return None;
         }
         let d = *frame.raw();
@@ -516,6 +550,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
                 if ackseq > sent {
                     return Err(AbortCode::INVALID_SEQUENCE);
                 }
+                self.stalled(ackseq == 0)?;
                 let len = self.len();
                 let acked = start + 7 * usize::from(ackseq);
                 let segments = len.div_ceil(7).max(1);
@@ -524,7 +559,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
                     // segment that carried no data and the CRC if the server takes one.
                     let unused = (7 * segments - len) as u8;
                     let crc = if self.crc { crc16_ccitt(0, self.data()) } else { 0 }.to_le_bytes();
-                    self.out.push([0xC1 | (unused << 2), crc[0], crc[1], 0, 0, 0, 0, 0]);
+                    self.push([0xC1 | (unused << 2), crc[0], crc[1], 0, 0, 0, 0, 0]);
                     self.state = State::BlockDownEnd;
                     return Ok(None);
                 }
@@ -561,7 +596,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
                     }
                     return Ok(Some(self.finish(Ok(end))));
                 }
-                self.out.push([0x60 | if toggle { 0 } else { 0x10 }, 0, 0, 0, 0, 0, 0, 0]);
+                self.push([0x60 | if toggle { 0 } else { 0x10 }, 0, 0, 0, 0, 0, 0, 0]);
                 self.state = State::UpSeg { toggle: !toggle, pos: end };
                 Ok(None)
             }
@@ -577,7 +612,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
                 if cmd & 0x02 != 0 {
                     self.indicated(u32::from_le_bytes([d[4], d[5], d[6], d[7]]))?;
                 }
-                self.out.push([0xA3, 0, 0, 0, 0, 0, 0, 0]);
+                self.push([0xA3, 0, 0, 0, 0, 0, 0, 0]);
                 self.state = State::BlockUpData { pos: 0, seq: 0 };
                 Ok(None)
             }
@@ -589,7 +624,14 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
                 }
                 let (mut pos, mut seq) = (pos, seq);
                 let in_order = s == seq + 1;
+                if !in_order && *d == self.last_seg {
+                    // The segment taken last, delivered again (a CAN transmitter repeats a
+                    // frame whose acknowledgement it missed): acknowledging it again would
+                    // make the server resend a block.
+                    return Ok(None);
+                }
                 if in_order {
+                    self.last_seg = *d;
                     // Bytes past the buffer are padding of the last segment or an overflow;
                     // which one the end request tells, so only a certain overflow aborts here.
                     let cap = self.capacity();
@@ -604,7 +646,8 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
                     seq = s;
                 }
                 if last || s == self.blksize {
-                    self.out.push([0xA2, seq, self.blksize, 0, 0, 0, 0, 0]);
+                    self.stalled(seq == 0)?;
+                    self.push([0xA2, seq, self.blksize, 0, 0, 0, 0, 0]);
                     self.state =
                         if last && in_order { State::BlockUpEnd { pos } } else { State::BlockUpData { pos, seq: 0 } };
                 } else {
@@ -613,6 +656,9 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
                 Ok(None)
             }
             State::BlockUpEnd { pos } => {
+                if *d == self.last_seg {
+                    return Ok(None);
+                }
                 if cmd & 0xE3 != 0xC1 {
                     return Err(AbortCode::INVALID_COMMAND);
                 }
@@ -627,10 +673,19 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
                 if self.crc && crc16_ccitt(0, &self.data()[..len]) != u16::from_le_bytes([d[1], d[2]]) {
                     return Err(AbortCode::CRC_ERROR);
                 }
-                self.out.push([0xA1, 0, 0, 0, 0, 0, 0, 0]);
+                self.push([0xA1, 0, 0, 0, 0, 0, 0, 0]);
                 Ok(Some(self.finish(Ok(len))))
             }
         }
+    }
+
+    /// Counts a block that moved nothing, and aborts after [`MAX_STALLED_BLOCKS`] in a row.
+    fn stalled(&mut self, stalled: bool) -> Result<(), AbortCode> {
+        self.stalls = if stalled { self.stalls + 1 } else { 0 };
+        if self.stalls >= MAX_STALLED_BLOCKS {
+            return Err(AbortCode::GENERAL_ERROR);
+        }
+        Ok(())
     }
 
     fn capacity(&self) -> usize {
@@ -674,7 +729,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
         if sized {
             self.indicated(u32::from_le_bytes([d[4], d[5], d[6], d[7]]))?;
         }
-        self.out.push([0x60, 0, 0, 0, 0, 0, 0, 0]);
+        self.push([0x60, 0, 0, 0, 0, 0, 0, 0]);
         self.state = State::UpSeg { toggle: false, pos: 0 };
         Ok(None)
     }
@@ -687,7 +742,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
         let mut seg = [0u8; 8];
         seg[0] = (if toggle { 0x10 } else { 0 }) | (((7 - n) as u8) << 1) | u8::from(end == len);
         seg[1..1 + n].copy_from_slice(&self.data()[pos..end]);
-        self.out.push(seg);
+        self.push(seg);
         self.state = State::DownSeg { toggle, end };
     }
 
@@ -699,6 +754,10 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
             emit(Frame::full(self.tx, *d));
         }
         self.out.len = 0;
+        if self.unsent > 0 {
+            self.on_bus = true;
+            self.unsent = 0;
+        }
         if let State::BlockDownSend { start, blksize } = self.state {
             let data = self.buf.as_ref().map_or(&[][..], |b| b.as_ref());
             let len = data.len();
