@@ -1,6 +1,6 @@
 //! Profile position: trapezoids, triangles, set-point handling, halt, quick stop, limits.
 
-mod motion_common;
+use crate::motion_common;
 
 use drive::motion::{
     Axis, AxisConfig, CommandError, Mode, PlantConfig, QuickStopOption, RelativeBase, SetPoint, SoftwareLimits,

@@ -5,7 +5,7 @@
 //! index pulses at 1000 + k · 4000. The home switch is a cam placed per test. The axis starts
 //! at 0.
 
-mod motion_common;
+use crate::motion_common;
 
 use drive::motion::{
     Axis, AxisConfig, Cam, Environment, HomeOffsetMode, HomingConfig, HomingError, HomingMethod, HomingState, Mode,

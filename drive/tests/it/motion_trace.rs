@@ -1,6 +1,6 @@
 //! Traces: CSV and SVG plots of known moves (the DRVI's Figures 4.1, 4.2 and 4.4).
 
-mod motion_common;
+use crate::motion_common;
 
 use std::collections::BTreeMap;
 

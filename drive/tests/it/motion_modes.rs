@@ -1,6 +1,6 @@
 //! Profile velocity, profile torque, jog, interpolated position, mode changes.
 
-mod motion_common;
+use crate::motion_common;
 
 use drive::motion::{
     Axis, AxisConfig, CommandError, InterpolationConfig, JogCommand, JogState, Mode, PlantConfig, SoftwareLimits,

@@ -7,7 +7,7 @@
 //! devices/kollmorgen-akd.toml and asserted by devices/tests/akd.rs), the comment says what was
 //! fixed.
 
-mod manual_frames;
+use crate::manual_frames;
 
 use drive::drives::akd::{self, Akd, COUNTS_PER_TURN, FactorGroup, code};
 use drive::drives::master::{Master, SdoError};

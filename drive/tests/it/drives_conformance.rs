@@ -1,7 +1,7 @@
 //! The findings of an outside conformance run (issue 17): each test drives a simulated drive
 //! through real frames on the in-memory bus and the virtual clock, as a master would.
 
-mod manual_frames;
+use crate::manual_frames;
 
 use drive::drives::akd::{self, Akd};
 use drive::drives::master::{Master, SdoError};
