@@ -12,7 +12,7 @@
 #[path = "support/icount.rs"]
 mod icount;
 
-#[path = "../tests/common/mod.rs"]
+#[path = "../tests/it/common/mod.rs"]
 mod common;
 
 use common::*;

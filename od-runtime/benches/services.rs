@@ -8,7 +8,7 @@
 //! thread's CPU time (Linux `CLOCK_THREAD_CPUTIME_ID`), which stays meaningful on a machine
 //! shared with other builds, where wall-clock figures include time spent preempted.
 
-#[path = "../tests/common/mod.rs"]
+#[path = "../tests/it/common/mod.rs"]
 mod common;
 
 use common::*;

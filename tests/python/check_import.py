@@ -1,6 +1,6 @@
 """Checks that python-canopen reads the EDS/DCF files we write as meaning what our model says.
 
-Usage: check_import.py MANIFEST.json  (written by eds/tests/python_interop.rs)
+Usage: check_import.py MANIFEST.json  (written by eds/tests/it/python_interop.rs)
 
 The manifest lists files and, for each, our model's view: objects, entries, typed values, the
 node id. This script imports each file with ``canopen.import_od`` and compares. It prints one

@@ -9,7 +9,7 @@ profile torque (set by SDO: 6502h, as printed, does not list it, so BaseNode402 
 mode); interpolated position with SYNC; a software limit violation (EMCY 8580h F107 in profile
 velocity, warning 8582h n107 for a clipped target); the loss of the master's heartbeat (EMCY
 8130h F129, braked to standstill, Fault); fault reset; 1010h save, restart of drive-sim with
---state-dir, values restored. The Rust tests (drive/tests/drives_akd.rs) convert with the
+--state-dir, values restored. The Rust tests (drive/tests/it/drives_akd.rs) convert with the
 generated units module itself; here the conversion is the sidecar's formula.
 
 Homing is started and watched with the controlword and statusword rather than

@@ -3,7 +3,7 @@ replayed frame by frame against `drive-sim run --device akd` over the socketcand
 python-can bus.
 
 Frames are written as the manual prints them ("603 2B 40 60 00 06 00 00 00"). Where a listing
-has a typo (the decisions of devices/kollmorgen-akd.toml, asserted by devices/tests/akd.rs) the
+has a typo (the decisions of devices/kollmorgen-akd.toml, asserted by devices/tests/it/akd.rs) the
 comment says what was fixed. Two things every listing of 7.2.1.5 to 7.2.2.1 needs besides:
 
 * CiA 301 lets a PDO mapping change only while the PDO is invalid (COB-ID bit 31), and the
@@ -12,7 +12,7 @@ comment says what was fixed. Two things every listing of 7.2.1.5 to 7.2.2.1 need
 * Where the manual does not say which units the drive was set up with, the replays use the
   setup 7.2.1.7 names: 10 000 user units (um) per motor turn (6092h sub 1).
 
-The same listings run in virtual time in drive/tests/drives_akd.rs (with the EMCY part of
+The same listings run in virtual time in drive/tests/it/drives_akd.rs (with the EMCY part of
 7.2.1.10, which needs a simulated over-temperature that the bus cannot provoke).
 """
 

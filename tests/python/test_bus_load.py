@@ -3,7 +3,7 @@ that hold connections and say nothing, it keeps talking to a device while anothe
 the bus, and a device on `run --bus` whose hub goes away comes back by itself with its state.
 
 The Rust side of the same rules: drive/tests/hub_tcp.rs (admission, slow readers, floods, the
-emulated wire) and drive/tests/e2e_cli.rs (reconnection).
+emulated wire) and drive/tests/it/e2e_cli.rs (reconnection).
 """
 
 import socket

@@ -9,8 +9,8 @@ restart (--state-dir).
 The loss of the master: the DRVI has no heartbeat consumer (1016h), so the master it can lose
 is the node guarding one (6.10.2.1): python-canopen guards it (remote frames, which the
 fixtures' socketcand bus sends as `< sendrtr >`; python-can's stock interface cannot) and
-stops. The same in Rust over the hub: drive/tests/drives_drvi_e2e.rs; on the in-memory bus:
-drive/tests/drives_drvi.rs.
+stops. The same in Rust over the hub: drive/tests/it/drives_drvi_e2e.rs; on the in-memory bus:
+drive/tests/it/drives_drvi.rs.
 """
 
 import time

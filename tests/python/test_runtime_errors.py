@@ -7,7 +7,7 @@ Node guarding (100Ch/100Dh) is driven by python-canopen's own NMT master
 (`start_node_guarding`): its remote frames reach the hub through the fixtures'
 `RtrSocketcandBus` (python-can's stock socketcand interface drops the RTR bit). The frame-level
 details (toggle bit per state, life guarding event latched until a fault reset) are also tested
-in Rust, drive/tests/e2e_guarding.rs."""
+in Rust, drive/tests/it/e2e_guarding.rs."""
 
 import statistics
 import time

@@ -41,7 +41,7 @@
 //! 3. Return it from an [`Apps`] implementation and give that to [`DeviceKind::build`];
 //!    `drive-sim` builds its devices with `DefaultApps` in one place (`run_devices`).
 //! 4. Test it frame for frame with [`Sim`] (virtual time) and the tests of
-//!    `drive/tests/node_sim.rs` as a model.
+//!    `drive/tests/it/node_sim.rs` as a model.
 //!
 //! # Example: a DRVI on the in-memory bus
 //!

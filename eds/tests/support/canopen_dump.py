@@ -1,6 +1,6 @@
 # Dumps what python-canopen reads from EDS/DCF files: for each file, every variable with its
 # data type and its default value with $NODEID resolved for the node id given first.
-# Used by eds/tests/corpus_canopen.rs; prints JSON on stdout.
+# Used by eds/tests/it/corpus_canopen.rs; prints JSON on stdout.
 import sys, json, math
 import canopen
 node = int(sys.argv[1])

@@ -1,7 +1,7 @@
 """Imports the DCFs `odgen dcf --network` writes with python-canopen and compares what it reads
 with what our model says they contain.
 
-Usage: import_network.py MANIFEST.json   (written by odgen/tests/network_python.rs)
+Usage: import_network.py MANIFEST.json   (written by odgen/tests/it/network_python.rs)
 
 The manifest lists each DCF with the node id and bit rate it was configured for, every
 ParameterValue that is an integer, and for each PDO its COB-ID, transmission type, event timer

@@ -1,0 +1,166 @@
+//! "The tokens always compile": the code generated for every file of the EDS corpus
+//! (`$EDS_CORPUS_DIR`, skipped with a message when unset) and for every fixture of this crate,
+//! bad ones included, goes into one `#![no_std]` crate, a module per file, which `cargo check`
+//! must accept with warnings denied.
+//!
+//! Generation is lenient (the default): every file the reader loads without errors must
+//! generate without errors. Beside the files, the crate holds models built at random (a fixed
+//! seed, so a failure reproduces) from the parts real files get wrong: names that collide or
+//! are keywords, ordinals, non-ASCII, defaults and limits outside the type (REAL32 beyond
+//! `f32`, NaN), `$NODEID` values, unsupported types, and PDO mappings of absent, unmappable,
+//! mistyped and placeholder entries. The crate lives in the target directory
+//! (`target/od-codegen-compile-all`) and keeps its own target directory between runs, so a run
+//! after a small change rechecks only what changed; files are written only when they change.
+
+use crate::common;
+
+use common::{description_files, workspace_root};
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use od_codegen::{Builder, Severity};
+
+fn target_dir() -> PathBuf {
+    match std::env::var_os("CARGO_TARGET_DIR") {
+        Some(d) => {
+            let d = PathBuf::from(d);
+            if d.is_absolute() { d } else { workspace_root().join(d) }
+        }
+        None => workspace_root().join("target"),
+    }
+}
+
+/// The corpus files, or `None` (with a message) when `$EDS_CORPUS_DIR` is not set.
+fn corpus() -> Option<Vec<PathBuf>> {
+    let Some(dir) = std::env::var_os("EDS_CORPUS_DIR") else {
+        println!("SKIPPED the corpus part: EDS_CORPUS_DIR is not set (only the fixtures are compiled)");
+        return None;
+    };
+    let dir = PathBuf::from(dir);
+    let dir = if dir.is_absolute() { dir } else { workspace_root().join(dir) };
+    Some(description_files(&dir))
+}
+
+/// A module name for a file: its stem in snake case, numbered to stay unique and short.
+fn module_name(i: usize, path: &Path) -> String {
+    let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("");
+    let tail: String = stem.rsplit("__").next().unwrap_or(stem).to_owned();
+    let snake = od_codegen::ident::snake(&tail).unwrap_or_else(|| "device".to_owned());
+    format!("f{i:02}_{}", snake.trim_end_matches('_'))
+}
+
+#[test]
+fn every_description_generates_code_that_compiles_with_warnings_denied() {
+    let mut files = description_files(&Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures"));
+    let fixtures = files.len();
+    if let Some(c) = corpus() {
+        files.extend(c);
+    }
+    let krate = target_dir().join("od-codegen-compile-all");
+    let src = krate.join("src");
+    std::fs::create_dir_all(&src).unwrap();
+
+    let mut builder = Builder::new().cargo_metadata(false).out_dir(&src);
+    let mut modules = Vec::new();
+    let mut read_errors = Vec::new();
+    for (i, f) in files.iter().enumerate() {
+        // Files the reader refuses are not the generator's to build (a corpus file with reader
+        // errors would show up in eds/tests/corpus.rs); bad fixtures have errors by design, and
+        // their code must compile all the same, so they are read leniently too.
+        let parsed = eds::read_file(f, &eds::Options::lenient()).unwrap();
+        if parsed.has_errors() && i >= fixtures {
+            read_errors.push(f.display().to_string());
+            continue;
+        }
+        let m = module_name(i, f);
+        builder = builder.device(&m, f).no_sidecar();
+        modules.push((m, i < fixtures));
+    }
+    assert!(read_errors.is_empty(), "corpus files the reader refuses: {read_errors:#?}");
+
+    let started = std::time::Instant::now();
+    let results = builder.generate_each();
+    let generated_in = started.elapsed();
+    let mut failures = Vec::new();
+    let mut deviations = 0usize;
+    for (r, (m, is_fixture)) in results.iter().zip(&modules) {
+        match r {
+            Ok(o) => {
+                deviations += o.diagnostics.iter().filter(|d| od_codegen::diag::DEVIATIONS.contains(&d.code)).count();
+                od_codegen::write_if_changed(&src.join(&o.file_name), &o.text).unwrap();
+            }
+            // A bad fixture fails on its reader errors: its code is still what the tokens are,
+            // so write it (through `expand`, which `generate_each` does not hand out then).
+            Err(od_codegen::Error::Device { .. }) if *is_fixture => {
+                let f = &files[modules.iter().position(|(n, _)| n == m).unwrap()];
+                let parsed = eds::read_file(f, &eds::Options::lenient()).unwrap();
+                let g = od_codegen::expand(&parsed.model, &od_codegen::Options::new(m.clone(), m.clone()));
+                assert!(
+                    g.diagnostics.iter().all(|d| d.severity != Severity::Error || d.code.0.starts_with("G02")),
+                    "{m}: {}",
+                    od_codegen::diag::render_plain(&g.diagnostics)
+                );
+                let text = od_codegen::render(&g.tokens, m).unwrap();
+                od_codegen::write_if_changed(&src.join(format!("{m}.rs")), &text).unwrap();
+            }
+            Err(e) => failures.push(format!("{m}: {e}")),
+        }
+    }
+    assert!(failures.is_empty(), "lenient generation failed:\n{}", failures.join("\n\n"));
+
+    // `ODCODEGEN_RANDOM_MODELS=N` checks more (or fewer) of them.
+    let random_models: u64 = std::env::var("ODCODEGEN_RANDOM_MODELS").ok().and_then(|n| n.parse().ok()).unwrap_or(40);
+    for seed in 0..random_models {
+        let m = format!("random_{seed:02}");
+        let model = common::random::model(seed);
+        let g = od_codegen::expand(&model, &od_codegen::Options::new(m.clone(), format!("{m}.eds")));
+        let errors: Vec<_> = g.diagnostics.iter().filter(|d| d.severity == Severity::Error).cloned().collect();
+        assert!(errors.is_empty(), "seed {seed}: {}", od_codegen::diag::render_plain(&errors));
+        let text = od_codegen::render(&g.tokens, &m).unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+        od_codegen::write_if_changed(&src.join(format!("{m}.rs")), &text).unwrap();
+        modules.push((m, false));
+    }
+
+    let mut lib = String::from(
+        "//! Every description's generated module (written by od-codegen's tests/compile_all.rs).\n\
+         #![no_std]\n#![deny(warnings)]\n\n",
+    );
+    for (m, _) in &modules {
+        lib.push_str(&format!("include!(\"{m}.rs\");\n"));
+    }
+    od_codegen::write_if_changed(&src.join("lib.rs"), &lib).unwrap();
+    let runtime = workspace_root().join("od-runtime");
+    let manifest = format!(
+        "[package]\nname = \"od-codegen-compile-all\"\nversion = \"0.0.0\"\nedition = \"2024\"\npublish = false\n\n\
+         [dependencies]\nod-runtime = {{ path = {:?} }}\n\n[workspace]\n",
+        runtime.display().to_string()
+    );
+    od_codegen::write_if_changed(&krate.join("Cargo.toml"), &manifest).unwrap();
+
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let started = std::time::Instant::now();
+    let out = Command::new(cargo)
+        .arg("check")
+        .arg("--quiet")
+        .arg("--offline")
+        .arg("--manifest-path")
+        .arg(krate.join("Cargo.toml"))
+        .arg("--target-dir")
+        .arg(krate.join("target"))
+        // The outer `cargo test`'s settings are not the inner build's.
+        .env_remove("RUSTFLAGS")
+        .env_remove("CARGO_ENCODED_RUSTFLAGS")
+        .env_remove("CARGO_TARGET_DIR")
+        .env_remove("CARGO_BUILD_TARGET_DIR")
+        .output()
+        .expect("run cargo check");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    println!(
+        "{} descriptions ({fixtures} fixtures), {deviations} deviations (warnings), generated in {:.1?}, checked in {:.1?}",
+        modules.len(),
+        generated_in,
+        started.elapsed()
+    );
+    assert!(out.status.success(), "the generated code does not compile (crate at {}):\n{stderr}", krate.display());
+}

@@ -1,0 +1,15 @@
+//! The integration tests of `od-runtime`, one module per former test file, linked into one
+//! binary: `cargo test -p od-runtime --test it` runs them all, `... --test it -- MODULE::` one module.
+
+#[cfg(feature = "embedded-can")]
+mod can;
+mod cia402;
+mod common;
+mod master;
+mod handles;
+mod nmt;
+mod pdo;
+mod props;
+mod sdo;
+mod services;
+mod store;
