@@ -32,4 +32,4 @@ pub use od_runtime::cia402::State;
 pub use od_runtime::master::nmt::Target;
 pub use od_runtime::master::{Emergency, Mode, NodeEvent, PdoField, PdoMapping, PdoValue, TransferError, Watch};
 pub use od_runtime::od::AbortCode;
-pub use od_runtime::{NmtCommand, NmtState};
+pub use od_runtime::{NmtCommand, NmtState, NodeId};
