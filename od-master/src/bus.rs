@@ -3,6 +3,10 @@
 //! One task owns the bus and every protocol machine of `od_runtime::master`; [`Bus`] handles
 //! (cheap to clone, usable from any task) send it commands and wait for the answers. The task
 //! runs as long as a handle exists, and ends when the bus is closed for good.
+//!
+//! SDO transfers use each node's default channel (requests on 600h + id, answers on
+//! 580h + id); PDOs, SYNC (080h), EMCY (080h + id) and heartbeats (700h + id) their CiA 301
+//! default identifiers, PDOs any identifier given.
 
 use std::collections::{HashMap, VecDeque};
 use std::sync::Arc;
@@ -133,6 +137,7 @@ impl Bus {
             events: events.clone(),
             frames: frames.clone(),
             out: Vec::new(),
+            sends: Vec::new(),
         };
         tokio::spawn(task.run());
         Self { commands, events, frames, syncs, link: link_state, sdo: config.sdo }
@@ -275,6 +280,7 @@ struct Task {
     events: broadcast::Sender<Event>,
     frames: broadcast::Sender<CanFrame>,
     out: Vec<Frame>,
+    sends: Vec<(CanFrame, oneshot::Sender<Result<(), Error>>)>,
 }
 
 /// Whether a failed transfer may be started again: the answer got lost or garbled on the way
@@ -379,11 +385,15 @@ impl Task {
         }
     }
 
-    /// Sends what the machines produced. A frame that cannot be sent (a socketcand link that is
-    /// down) is lost like a frame lost on the wire: the SDO timeout and retries deal with it.
+    /// Sends what the machines produced, then the frames callers asked for (each told how it
+    /// went). A machine's frame that cannot be sent (a socketcand link that is down) is lost
+    /// like a frame lost on the wire: the SDO timeout and retries deal with it.
     async fn flush(&mut self) {
         for frame in std::mem::take(&mut self.out) {
             let _ = self.tx.send(CanFrame::from(frame)).await;
+        }
+        for (frame, reply) in std::mem::take(&mut self.sends) {
+            let _ = reply.send(self.tx.send(frame).await.map_err(Error::from));
         }
     }
 
@@ -400,18 +410,7 @@ impl Task {
                 channel.queue.push_back(request);
                 self.next(node, now);
             }
-            Command::Send(frame, reply) => {
-                if let Ok(frame) = Frame::try_from(frame) {
-                    self.out.push(frame);
-                    let _ = reply.send(Ok(()));
-                } else {
-                    // Extended frames are not CANopen's, but the bus carries them.
-                    let tx = self.tx.clone();
-                    tokio::spawn(async move {
-                        let _ = reply.send(tx.send(frame).await.map_err(Error::from));
-                    });
-                }
-            }
+            Command::Send(frame, reply) => self.sends.push((frame, reply)),
             Command::Watch { node, watch, boot_timeout, reply } => {
                 let watch = watch.unwrap_or(Watch::Heartbeat { timeout: 0 });
                 // The table has a slot for each of the 127 node ids: it cannot be full.

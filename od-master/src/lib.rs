@@ -9,6 +9,7 @@
 //! | events: boot-up, heartbeat lost/recovered, NMT state, EMCY with texts | [`Event`] | [`event`] |
 //! | CiA 402 drive: enable, homing, profile position/velocity, cyclic position | [`Axis`] | [`axis`] |
 //! | errors naming the node, the object and the abort code | [`Error`] | [`error`] |
+//! | a blocking facade for scripts, wrapping the async handles | [`blocking::Bus`] | [`blocking`] |
 //!
 //! The protocol is `od_runtime::master`'s (sans-IO state machines); the buses are `od-bus`'s.
 //! This crate is the async shell between them: one task owns the bus and every machine, and
@@ -16,6 +17,7 @@
 #![deny(missing_docs)]
 
 pub mod axis;
+pub mod blocking;
 pub mod bus;
 pub mod error;
 pub mod event;

@@ -115,3 +115,21 @@ async fn the_hub_restarted_the_bus_reconnects_and_the_next_transfer_succeeds() {
     drop(bus);
     rig.shutdown();
 }
+
+/// The blocking facade, from a plain thread: the same values as the async master, and a drive
+/// enabled and moved.
+#[test]
+fn the_blocking_facade_reads_writes_and_moves_a_drive() {
+    let rig = Rig::start("127.0.0.1:0", &[(DeviceKind::Drvi, 2)]);
+    let bus = od_master::blocking::Bus::open(&format!("socketcand://{}/can0", rig.addr()), Config::default()).unwrap();
+    let drive = bus.node(2).unwrap();
+    assert_eq!(drive.read::<u32>(0x1000, 0).unwrap(), 0xFF7A_0192);
+    drive.write_idempotent(0x6083, 0, 600u32).unwrap();
+    assert_eq!(drive.read::<u32>(0x6083, 0).unwrap(), 600);
+    let axis = drive.axis();
+    assert_eq!(axis.home(&Homing::method(37)).unwrap(), 0);
+    let m = Move { velocity: Some(6_000), acceleration: Some(24_000), deceleration: Some(24_000), ..Move::default() };
+    assert_eq!(axis.move_to(1_800, &m).unwrap(), 1_800);
+    drop((axis, drive, bus));
+    rig.shutdown();
+}
