@@ -16,8 +16,10 @@ use crate::harness::{net, pass};
 const VALUE: &[u8] = b"twenty bytes of data";
 
 /// What the server does wrong.
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Default)]
 struct Faults {
+    /// What becomes of each answer, in turn (then they are delivered): see [`Fate`].
+    script: Vec<Fate>,
     /// Answers nothing from this answer on (counted from 0 over the server's life).
     silent_from: Option<usize>,
     /// Sends its segment with the wrong toggle bit at this answer.
@@ -26,6 +28,17 @@ struct Faults {
     abort_at: Option<usize>,
     /// Drops every n-th answer.
     drop_every: Option<usize>,
+}
+
+/// What becomes of one answer of the server.
+#[derive(Clone, Copy, Debug)]
+enum Fate {
+    Deliver,
+    Drop,
+    /// Sent twice (a transmitter that missed the acknowledgement repeats the frame).
+    Twice,
+    /// Sent this many milliseconds late (after the client's timeout, when it is long).
+    Late(u8),
 }
 
 /// What the server saw.
@@ -38,14 +51,14 @@ struct Log {
 /// Starts the server on `bus`; returns its log.
 fn server(bus: &MemoryBus, faults: Faults) -> Arc<Mutex<Log>> {
     let log = Arc::new(Mutex::new(Log::default()));
-    let mut link = Link::attach(bus);
+    let (tx, mut rx) = Link::attach(bus).split();
     let shared = Arc::clone(&log);
     tokio::spawn(async move {
         let mut answers = 0usize;
         let mut pos = 0usize;
         let mut toggle = 0u8;
         let mut incoming = Vec::new();
-        while let Ok(f) = link.recv().await {
+        while let Ok(f) = rx.recv().await {
             if f.id() != 0x609 || f.dlc() != 8 {
                 continue;
             }
@@ -99,7 +112,24 @@ fn server(bus: &MemoryBus, faults: Faults) -> Arc<Mutex<Log>> {
             if faults.abort_at == Some(k) {
                 a = [0x80, 0x00, 0x20, 0x00, 0x00, 0x00, 0x00, 0x08];
             }
-            let _ = link.send(CanFrame::standard(0x589, &a).unwrap()).await;
+            let answer = CanFrame::standard(0x589, &a).unwrap();
+            match faults.script.get(k).copied().unwrap_or(Fate::Deliver) {
+                Fate::Deliver => {
+                    let _ = tx.send(answer).await;
+                }
+                Fate::Drop => {}
+                Fate::Twice => {
+                    let _ = tx.send(answer).await;
+                    let _ = tx.send(answer).await;
+                }
+                Fate::Late(ms) => {
+                    let tx = tx.clone();
+                    tokio::spawn(async move {
+                        tokio::time::sleep(Duration::from_millis(u64::from(ms))).await;
+                        let _ = tx.send(answer).await;
+                    });
+                }
+            }
         }
     });
     log
@@ -283,4 +313,44 @@ async fn random_frames_on_the_bus_change_no_value() {
     }
     assert!(seen > 200, "{seen} frames received");
     assert_eq!(n.bus.node(2).unwrap().read_bytes(0x1000, 0).await.unwrap(), quiet[0]);
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::test_runner::Config { cases: 64, ..Default::default() })]
+
+    /// Whatever becomes of the server's answers (lost, repeated, late past the timeout), a read
+    /// either returns the server's value or fails with an SDO error naming the node and the
+    /// object; a write reaches the server with its data or fails. Nothing panics, nothing hangs.
+    #[test]
+    fn no_fate_of_the_answers_gives_a_wrong_value(
+        fates in proptest::collection::vec(
+            proptest::prop_oneof![
+                4 => proptest::strategy::Just(Fate::Deliver),
+                1 => proptest::strategy::Just(Fate::Drop),
+                1 => proptest::strategy::Just(Fate::Twice),
+                1 => proptest::strategy::Strategy::prop_map(1u8..120, Fate::Late),
+            ],
+            0..60,
+        ),
+        retries in 0u8..4,
+    ) {
+        let rt = tokio::runtime::Builder::new_current_thread().enable_time().start_paused(true).build().unwrap();
+        rt.block_on(async {
+            let (bus, log, _) = setup(Faults { script: fates, ..Faults::default() });
+            let node = bus.node(9).unwrap().with_options(opts(50, retries));
+            for k in 0..8u32 {
+                match node.read_bytes(0x2000, 0).await {
+                    Ok(v) => assert_eq!(v, VALUE),
+                    Err(Error::Sdo { error, .. }) => assert_eq!((error.node, error.index, error.sub), (9, 0x2000, 0)),
+                    Err(e) => panic!("{e}"),
+                }
+                let data = format!("written number {k:03}");
+                match node.write_bytes_idempotent(0x2000, 0, data.as_bytes()).await {
+                    Ok(()) => assert_eq!(log.lock().unwrap().written.last().unwrap(), data.as_bytes()),
+                    Err(Error::Sdo { error, .. }) => assert_eq!((error.node, error.index), (9, 0x2000)),
+                    Err(e) => panic!("{e}"),
+                }
+            }
+        });
+    }
 }
