@@ -159,3 +159,25 @@ async fn an_axis_error_names_the_drive_its_state_and_the_object() {
     let e = ghost.enable().await.unwrap_err();
     assert!(e.to_string().contains("drive 9 (state unknown), 6041h sub 0: node 9, upload of 6041h sub 0: aborted by the client: 0x05040000 (SDO protocol timed out)"), "{e}");
 }
+
+/// A homing the DRCS cannot run (its homing speeds are 0 out of the box) is a homing error
+/// (bit 13) and a fault, 8613h; the error says so, and `enable` waits for the fault reaction,
+/// resets the fault and brings the drive back.
+#[tokio::test(start_paused = true)]
+async fn a_homing_that_faults_is_reported_and_enable_resets_the_fault() {
+    let n = net(&[(DeviceKind::Drcs, 3)]);
+    pass(Duration::from_millis(5)).await;
+    let axis = Axis::new(n.bus.node(3).unwrap());
+    let e = axis.home(&Homing::method(17)).await.unwrap_err();
+    let Error::Axis(a) = &e else { panic!("{e:?}") };
+    assert!(matches!(a.kind, AxisErrorKind::Bit13("homing error")), "{e}");
+    assert_eq!((a.node, a.state, a.index), (3, Some(State::FaultReactionActive), 0x6098));
+    assert_eq!(
+        e.to_string(),
+        "drive 3 (in FaultReactionActive, statusword 261Fh), 6098h sub 0: statusword bit 13 set: homing error"
+    );
+    assert_eq!(axis.node().read::<u16>(0x603F, 0).await.unwrap(), 0x8613);
+    axis.enable().await.unwrap();
+    assert_eq!(axis.state().await.unwrap(), Some(State::OperationEnabled));
+    assert_eq!(axis.home(&Homing::method(37)).await.unwrap(), 0);
+}
