@@ -52,7 +52,7 @@ use proc_macro2::{Ident, Literal, TokenStream};
 use quote::{format_ident, quote};
 
 use crate::diag::{self, Sink};
-use crate::emit::rust_type;
+use crate::entry::rust_type;
 use crate::ident;
 use crate::lit;
 use crate::plan::{PEntry, Plan};
@@ -539,11 +539,11 @@ fn entry_accessors(cx: &mut Ctx<'_, '_>, plan: &Plan<'_>, sc: &Sidecar) -> Vec<T
             let s = format_ident!("set_{}", e.field);
             let dv = dim_ident(*d);
             let ty = rust_type(e.ty);
-            let name = lit::doc_escape(&crate::emit::display_name(e));
-            let get_doc = lit::doc(&[format!("{} {name} as a {d:?} quantity.", crate::emit::location(e))]);
+            let name = lit::doc_escape(&crate::entry::display_name(e));
+            let get_doc = lit::doc(&[format!("{} {name} as a {d:?} quantity.", crate::entry::location(e))]);
             let set_doc = lit::doc(&[format!(
                 "Sets {} {name} from a {d:?} quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).",
-                crate::emit::location(e)
+                crate::entry::location(e)
             )]);
             accessors.push(quote! {
                 #get_doc

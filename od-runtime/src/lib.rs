@@ -18,6 +18,10 @@
 //! Time is an argument ([`Micros`]). The application plugs in through [`App`] (a veto on
 //! writes and a stream of [`Event`]s) and [`Storage`] (persisting the records that 1010h
 //! saves).
+//!
+//! The other side of the bus is in [`master`]: the client services (SDO client, NMT master,
+//! heartbeat consumer and node guarding, EMCY consumer, SYNC producer, PDO packing) as sans-IO
+//! state machines on the same frame, time and abort-code types.
 #![no_std]
 #![deny(missing_docs)]
 
@@ -31,6 +35,7 @@ pub mod crc;
 mod device;
 pub mod emcy;
 pub mod frame;
+pub mod master;
 pub mod nmt;
 pub mod od;
 pub mod pdo;

@@ -24,6 +24,18 @@ impl NmtState {
         }
     }
 
+    /// The state a heartbeat or node guarding state byte reports (bit 7, the guarding toggle,
+    /// ignored); `None` for a value CiA 301 does not define.
+    pub const fn from_code(code: u8) -> Option<Self> {
+        match code & 0x7F {
+            0x00 => Some(NmtState::Initialising),
+            0x7F => Some(NmtState::PreOperational),
+            0x05 => Some(NmtState::Operational),
+            0x04 => Some(NmtState::Stopped),
+            _ => None,
+        }
+    }
+
     /// Whether SDO transfers are served.
     pub const fn sdo_allowed(self) -> bool {
         matches!(self, NmtState::PreOperational | NmtState::Operational)
@@ -56,6 +68,17 @@ pub enum NmtCommand {
 }
 
 impl NmtCommand {
+    /// The command specifier (first byte of the NMT frame).
+    pub const fn code(self) -> u8 {
+        match self {
+            NmtCommand::Start => 0x01,
+            NmtCommand::Stop => 0x02,
+            NmtCommand::EnterPreOperational => 0x80,
+            NmtCommand::ResetNode => 0x81,
+            NmtCommand::ResetCommunication => 0x82,
+        }
+    }
+
     /// Decodes a command specifier.
     pub const fn from_byte(cs: u8) -> Option<Self> {
         match cs {

@@ -74,6 +74,58 @@ impl AbortCode {
     pub const DEVICE_STATE: Self = Self(0x0800_0022);
     /// No data available.
     pub const NO_DATA: Self = Self(0x0800_0024);
+    /// Resource not available: SDO connection.
+    pub const NO_SDO_CONNECTION: Self = Self(0x060A_0023);
+    /// Object dictionary dynamic generation fails or no object dictionary is present.
+    pub const NO_DICTIONARY: Self = Self(0x0800_0023);
+
+    /// The CiA 301 meaning of the code (table "SDO abort codes"), `None` for a code the
+    /// standard does not define (a vendor's own, or noise).
+    pub const fn name(self) -> Option<&'static str> {
+        Some(match self.0 {
+            0x0503_0000 => "toggle bit not alternated",
+            0x0504_0000 => "SDO protocol timed out",
+            0x0504_0001 => "client/server command specifier not valid or unknown",
+            0x0504_0002 => "invalid block size",
+            0x0504_0003 => "invalid sequence number",
+            0x0504_0004 => "CRC error",
+            0x0504_0005 => "out of memory",
+            0x0601_0000 => "unsupported access to an object",
+            0x0601_0001 => "attempt to read a write only object",
+            0x0601_0002 => "attempt to write a read only object",
+            0x0602_0000 => "object does not exist in the object dictionary",
+            0x0604_0041 => "object cannot be mapped to the PDO",
+            0x0604_0042 => "the number and length of the objects to be mapped would exceed the PDO length",
+            0x0604_0043 => "general parameter incompatibility",
+            0x0604_0047 => "general internal incompatibility in the device",
+            0x0606_0000 => "access failed due to a hardware error",
+            0x0607_0010 => "data type does not match, length of service parameter does not match",
+            0x0607_0012 => "data type does not match, length of service parameter too high",
+            0x0607_0013 => "data type does not match, length of service parameter too low",
+            0x0609_0011 => "sub-index does not exist",
+            0x0609_0030 => "invalid value for parameter",
+            0x0609_0031 => "value of parameter written too high",
+            0x0609_0032 => "value of parameter written too low",
+            0x0609_0036 => "maximum value is less than minimum value",
+            0x060A_0023 => "resource not available: SDO connection",
+            0x0800_0000 => "general error",
+            0x0800_0020 => "data cannot be transferred or stored to the application",
+            0x0800_0021 => "data cannot be transferred or stored to the application because of local control",
+            0x0800_0022 => {
+                "data cannot be transferred or stored to the application because of the present device state"
+            }
+            0x0800_0023 => "object dictionary dynamic generation fails or no object dictionary is present",
+            0x0800_0024 => "no data available",
+            _ => return None,
+        })
+    }
+}
+
+impl core::fmt::Display for AbortCode {
+    /// `0x06020000 (object does not exist in the object dictionary)`.
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "{:#010X} ({})", self.0, self.name().unwrap_or("unknown abort code"))
+    }
 }
 
 /// CiA 301 data types, by their type index.
@@ -109,6 +161,40 @@ pub enum DataType {
 }
 
 impl DataType {
+    /// The data type with this type index (the index of its DEFTYPE object, 0x0001..=0x001B),
+    /// `None` for an index that is not one of the types above.
+    pub const fn from_index(index: u16) -> Option<Self> {
+        use DataType as D;
+        Some(match index {
+            0x01 => D::Boolean,
+            0x02 => D::Integer8,
+            0x03 => D::Integer16,
+            0x04 => D::Integer32,
+            0x05 => D::Unsigned8,
+            0x06 => D::Unsigned16,
+            0x07 => D::Unsigned32,
+            0x08 => D::Real32,
+            0x09 => D::VisibleString,
+            0x0A => D::OctetString,
+            0x0B => D::UnicodeString,
+            0x0C => D::TimeOfDay,
+            0x0D => D::TimeDifference,
+            0x0F => D::Domain,
+            0x10 => D::Integer24,
+            0x11 => D::Real64,
+            0x12 => D::Integer40,
+            0x13 => D::Integer48,
+            0x14 => D::Integer56,
+            0x15 => D::Integer64,
+            0x16 => D::Unsigned24,
+            0x18 => D::Unsigned40,
+            0x19 => D::Unsigned48,
+            0x1A => D::Unsigned56,
+            0x1B => D::Unsigned64,
+            _ => return None,
+        })
+    }
+
     /// Whether values of this type have a variable length (strings, DOMAIN).
     pub const fn is_variable_length(self) -> bool {
         matches!(self, DataType::VisibleString | DataType::OctetString | DataType::UnicodeString | DataType::Domain)
