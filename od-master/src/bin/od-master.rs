@@ -80,6 +80,7 @@ enum Cmd {
         /// The object.
         object: String,
         /// The value.
+        #[arg(allow_hyphen_values = true)]
         value: String,
     },
     /// Sends an NMT command to a node or all.
@@ -127,6 +128,16 @@ enum AxisCmd {
         /// Relative to the current target.
         #[arg(long)]
         relative: bool,
+        /// Profile velocity (6081h), acceleration and deceleration (6083h, 6084h), raw units;
+        /// unset ones keep the drive's values.
+        #[arg(long)]
+        velocity: Option<u32>,
+        /// Profile acceleration and deceleration (6083h, 6084h), raw units.
+        #[arg(long)]
+        acceleration: Option<u32>,
+        /// How long the move may take, in seconds.
+        #[arg(long, default_value_t = 30.0)]
+        within: f64,
     },
     /// Profile velocity (raw units); it keeps running.
     Velocity {
@@ -202,6 +213,14 @@ fn node_id(text: &str) -> Result<u8, Fail> {
 
 fn target(object: &str, device: Option<&Device>) -> Result<Target, Fail> {
     resolve(object, device.map(|d| (&d.names, &d.model))).map_err(|e| usage(e.to_string()))
+}
+
+fn seconds(s: f64) -> Result<Duration, Fail> {
+    if s.is_finite() && s >= 0.0 {
+        Ok(Duration::from_secs_f64(s.min(1e9)))
+    } else {
+        Err(usage(format!("{s} is not a number of seconds")))
+    }
 }
 
 fn print_json(value: &serde_json::Value) {
@@ -284,8 +303,17 @@ async fn run(args: Args) -> Result<(), Fail> {
                     let pos = axis.home(&Homing::method(method)).await.map_err(fail)?;
                     println!("homed (method {method}), position {pos}");
                 }
-                AxisCmd::Move { to, relative } => {
-                    let pos = axis.move_to(to, &Move { relative, ..Move::default() }).await.map_err(fail)?;
+                AxisCmd::Move { to, relative, velocity, acceleration, within } => {
+                    let timeout = seconds(within)?;
+                    let m = Move {
+                        relative,
+                        velocity,
+                        acceleration,
+                        deceleration: acceleration,
+                        timeout,
+                        ..Move::default()
+                    };
+                    let pos = axis.move_to(to, &m).await.map_err(fail)?;
                     println!("position {pos}");
                 }
                 AxisCmd::Velocity { value } => axis.run_velocity(value, None, None).await.map_err(fail)?,
@@ -341,8 +369,7 @@ async fn monitor(
 ) -> Result<(), Fail> {
     let mut frames = bus.frames();
     let deadline = match duration {
-        Some(s) if s.is_finite() && s >= 0.0 => Some(tokio::time::Instant::now() + Duration::from_secs_f64(s.min(1e9))),
-        Some(_) => return Err(usage("--duration must be a number of seconds")),
+        Some(s) => Some(tokio::time::Instant::now() + seconds(s)?),
         None => None,
     };
     let mut seen = 0u64;

@@ -32,8 +32,6 @@ pub struct Pdo {
 
 /// A loaded device description.
 pub struct Device {
-    /// The file as given.
-    pub file: String,
     /// The model.
     pub model: Model,
     /// Entry names.
@@ -59,7 +57,7 @@ impl Device {
         } else {
             None
         };
-        Ok(Self { file, model, names, sidecar })
+        Ok(Self { model, names, sidecar })
     }
 
     fn value(&self, index: u16, sub: u8, node: u8) -> Option<i128> {
