@@ -22,8 +22,8 @@ use std::time::{Duration, Instant};
 
 use criterion::{Criterion, Throughput};
 use drive::node::{Ctx, DefaultApp, DriveApp, MonotonicClock, Node, NodeStorage, run};
-use drive::transport::{CanFrame, Endpoint, Hub, HubConfig, MemoryBus, SocketcandClient};
 use generated::drvi::Dictionary;
+use od_bus::{CanFrame, Endpoint, Hub, HubConfig, MemoryBus, SocketcandClient};
 use od_runtime::{Event, Micros, NodeId};
 
 const NODE: u8 = 2;

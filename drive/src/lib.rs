@@ -1,4 +1,4 @@
-//! Simulated CANopen drives and the buses they are reached through.
+//! Simulated CANopen drives; the buses they are reached through are the `od-bus` crate's.
 #![deny(missing_docs)]
 
 pub mod drives;
@@ -6,4 +6,3 @@ pub mod motion;
 pub mod node;
 pub mod storage;
 pub mod trace;
-pub mod transport;

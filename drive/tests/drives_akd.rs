@@ -14,10 +14,10 @@ use drive::drives::master::{Master, SdoError};
 use drive::drives::{Cia402App, DeviceApps, sidecar};
 use drive::motion::Environment;
 use drive::node::{DeviceKind, Node, NodeConfig, NodeStorage, Sim};
-use drive::transport::CanFrame;
 use generated::akd::Dictionary;
 use generated::akd::units::{Dimension, Quantity, System, Unit, Units};
 use manual_frames::{frame, got, sdo, text};
+use od_bus::CanFrame;
 use od_runtime::NodeId;
 use od_runtime::cia402::State;
 

@@ -10,9 +10,9 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use drive::transport::{CanFrame, Endpoint, SocketcandClient};
 use generated::akd::Dictionary;
 use generated::akd::units::{Dimension, Quantity, System, Unit, Units};
+use od_bus::{CanFrame, Endpoint, SocketcandClient};
 
 const ID: u8 = 4;
 const WAIT: Duration = Duration::from_secs(5);

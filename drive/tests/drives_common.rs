@@ -296,7 +296,7 @@ fn heartbeat_loss_is_the_fieldbus_disconnection_error() {
         if has_consumer {
             m.heartbeat(127);
         } else {
-            m.send(drive::transport::CanFrame::remote(0x700 + u32::from(ID), false, 1).unwrap());
+            m.send(od_bus::CanFrame::remote(0x700 + u32::from(ID), false, 1).unwrap());
         }
         m.advance(90_000);
     }

@@ -7,8 +7,8 @@ use drive::drives::akd::{self, Akd};
 use drive::drives::master::{Master, SdoError};
 use drive::drives::{Cia402App, DeviceApps};
 use drive::node::{DeviceKind, Node, NodeConfig, NodeStorage, Sim};
-use drive::transport::CanFrame;
 use manual_frames::{got, sdo};
+use od_bus::CanFrame;
 use od_runtime::NodeId;
 
 type AkdNode = Node<generated::akd::Dictionary, Cia402App<generated::akd::Dictionary, Akd>>;

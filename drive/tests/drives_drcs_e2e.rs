@@ -10,9 +10,9 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use drive::transport::{CanFrame, Endpoint, SocketcandClient};
 use generated::drcs::Dictionary;
 use generated::drcs::units::{Dimension, Quantity, Ratio, Unit, Units};
+use od_bus::{CanFrame, Endpoint, SocketcandClient};
 
 const ID: u8 = 3;
 const WAIT: Duration = Duration::from_secs(5);

@@ -1019,7 +1019,7 @@ fn inputs_2002h_and_the_output_2003h() {
     m.write_u32(ID, 0x1601, 1, 0x2003_0020).unwrap();
     m.write_u8(ID, 0x1601, 0, 1).unwrap();
     m.write_u32(ID, 0x1401, 1, 0x300 + u32::from(ID)).unwrap();
-    m.send(drive::transport::CanFrame::standard(0x300 + u32::from(ID), &1u32.to_le_bytes()).unwrap());
+    m.send(od_bus::CanFrame::standard(0x300 + u32::from(ID), &1u32.to_le_bytes()).unwrap());
     m.advance(2000);
     assert_eq!(m.read_u32(ID, 0x2003, 0).unwrap(), 1, "OUT high by RPDO");
 }
@@ -1249,7 +1249,7 @@ fn a_lost_guarding_master_is_the_fieldbus_disconnection_soft_error() {
     profile(&mut m, 0, 600);
     m.write_i32(ID, 0x60FF, 0, 6000).unwrap();
     for _ in 0..12 {
-        m.send(drive::transport::CanFrame::remote(0x700 + u32::from(ID), false, 1).unwrap());
+        m.send(od_bus::CanFrame::remote(0x700 + u32::from(ID), false, 1).unwrap());
         m.advance(90_000);
     }
     m.take_seen();
@@ -1258,7 +1258,7 @@ fn a_lost_guarding_master_is_the_fieldbus_disconnection_soft_error() {
     assert_eq!(state(&mut m), State::FaultReactionActive);
     assert!(m.wait_until(2_000_000, 10_000, |m| m.state(ID).unwrap() == Some(State::Fault)));
     // Guarding again does not clear the latched error; a reset does.
-    m.send(drive::transport::CanFrame::remote(0x700 + u32::from(ID), false, 1).unwrap());
+    m.send(od_bus::CanFrame::remote(0x700 + u32::from(ID), false, 1).unwrap());
     m.advance(50_000);
     assert_eq!(state(&mut m), State::Fault);
     m.controlword(ID, 0x80).unwrap();

@@ -9,9 +9,9 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use drive::trace::Trace;
-use drive::transport::{CanFrame, Endpoint, SocketcandClient};
 use generated::drvi::Dictionary;
 use generated::drvi::units::{Dimension, Quantity, Ratio, Unit, Units};
+use od_bus::{CanFrame, Endpoint, SocketcandClient};
 use od_runtime::od::ObjectDictionary;
 
 const WAIT: Duration = Duration::from_secs(10);

@@ -6,7 +6,7 @@ use std::io::{BufRead, BufReader, Read};
 use std::process::{Child, ChildStderr, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
-use drive::transport::{CanFrame, Endpoint, SocketcandClient};
+use od_bus::{CanFrame, Endpoint, SocketcandClient};
 
 const WAIT: Duration = Duration::from_secs(10);
 
@@ -88,7 +88,7 @@ fn upload_expedited(bus: &mut SocketcandClient, node: u32, index: u16) -> Vec<u8
 fn a_device_joins_a_hub_with_bus_and_stops_on_sigint() {
     let hub = Process::start(&["hub", "--listen", "127.0.0.1:0", "--quiet"], "listening on ");
     let mut master = SocketcandClient::connect(hub.ready.as_str(), "line1").unwrap();
-    let spec = format!("tcp://{}/line1", hub.ready);
+    let spec = format!("socketcand://{}/line1", hub.ready);
     let mut run = Process::start(&["run", "--device", "akd", "--node-id", "5", "--bus", &spec], "running on ");
     assert_eq!(run.ready, spec);
     // The first thing on the bus is its boot-up.

@@ -7,7 +7,7 @@ use std::net::SocketAddr;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use drive::transport::{CanFrame, Endpoint, SocketcandClient};
+use od_bus::{CanFrame, Endpoint, SocketcandClient};
 
 const WAIT: Duration = Duration::from_secs(5);
 

@@ -6,7 +6,7 @@ use std::net::SocketAddr;
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
-use drive::transport::{CanFrame, Endpoint, SocketcandClient};
+use od_bus::{CanFrame, Endpoint, SocketcandClient};
 
 const WAIT: Duration = Duration::from_secs(10);
 
@@ -81,7 +81,9 @@ fn the_hub_process_stops_on_sigint() {
 #[test]
 fn dump_and_send_are_clients_of_the_hub() {
     let hub = HubProcess::start();
-    let bus = format!("tcp://{}/vcan3", hub.addr);
+    let bus = format!("socketcand://{}/vcan3", hub.addr);
+    // The form drive-sim took first, still accepted.
+    let alias = format!("tcp://{}/vcan3", hub.addr);
     let mut dump = Command::new(env!("CARGO_BIN_EXE_drive-sim"))
         .args(["dump", "--bus", &bus, "--count", "3", "--timeout", "10"])
         .stdout(Stdio::piped())
@@ -94,7 +96,7 @@ fn dump_and_send_are_clients_of_the_hub() {
     assert_eq!(line.trim(), format!("dump: on {bus}"));
     let mut probe = SocketcandClient::connect(hub.addr, "vcan3").unwrap();
     let sent = Command::new(env!("CARGO_BIN_EXE_drive-sim"))
-        .args(["send", "--bus", &bus, "000#0100", "080#", "1ABCDEF0#R2"])
+        .args(["send", "--bus", &alias, "000#0100", "080#", "1ABCDEF0#R2"])
         .status()
         .unwrap();
     assert!(sent.success());
@@ -174,6 +176,29 @@ fn dump_reports_the_frames_the_hub_dropped_because_it_read_too_slowly() {
         .max()
         .unwrap();
     assert!(lost > 0 && printed as u64 + lost <= 300_002, "printed {printed}, lost {lost}");
+}
+
+#[test]
+fn a_bus_drive_sim_cannot_share_is_refused_naming_the_forms() {
+    for (bus, says) in [
+        ("mem://line", "an in-memory bus lives inside one process"),
+        ("udp://127.0.0.1:1/can0", "unknown scheme"),
+        ("socketcand://127.0.0.1/can0", "no port"),
+    ] {
+        for command in [
+            &["dump", "--bus", bus][..],
+            &["send", "--bus", bus, "080#"],
+            &["run", "--device", "drvi", "--node-id", "2", "--bus", bus],
+        ] {
+            let out = Command::new(env!("CARGO_BIN_EXE_drive-sim")).args(command).output().unwrap();
+            assert!(!out.status.success(), "{command:?}");
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            assert!(
+                stderr.contains(says) && stderr.contains("socketcand://HOST:PORT/CHANNEL"),
+                "{command:?}: {stderr}"
+            );
+        }
+    }
 }
 
 #[test]

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use drive::node::{DefaultApps, DeviceKind, NodeConfig, NodeSetupError, Sim};
-use drive::transport::{CanFrame, Endpoint, LocalEndpoint};
+use od_bus::{CanFrame, Endpoint, LocalEndpoint};
 
 /// The DRVI's EDS with `ParameterValue=` lines added to the named sections and, when given,
 /// a `[DeviceComissioning]` section: a DCF as a configuration tool writes one.

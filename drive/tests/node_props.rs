@@ -4,7 +4,7 @@
 
 use drive::node::{AnyNode, DefaultApps, DeviceKind, NodeConfig};
 use drive::storage::{Record, decode_image, encode_image};
-use drive::transport::CanFrame;
+use od_bus::CanFrame;
 use od_runtime::od::Area;
 use proptest::prelude::*;
 

@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use drive::node::{DefaultApps, DeviceKind, MonotonicClock, NodeConfig, run};
-use drive::transport::{CanFrame, Endpoint, Hub, HubConfig, LocalEndpoint, MemoryBus, TransportError};
+use od_bus::{CanFrame, Endpoint, Hub, HubConfig, LocalEndpoint, MemoryBus, TransportError};
 
 const WAIT: Duration = Duration::from_secs(5);
 

@@ -5,7 +5,7 @@
 use drive::node::{
     Ctx, DefaultApp, DefaultApps, DeviceKind, DriveApp, Node, NodeConfig, NodeStorage, Sim, WriteRequest,
 };
-use drive::transport::{CanFrame, Endpoint, LocalEndpoint};
+use od_bus::{CanFrame, Endpoint, LocalEndpoint};
 use od_runtime::cia402::State;
 use od_runtime::od::{AbortCode, ObjectDictionary};
 use od_runtime::{Event, Micros, NmtState, NodeId, WriteSource};

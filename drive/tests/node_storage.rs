@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use drive::node::{DefaultApp, DefaultApps, DeviceKind, Node, NodeConfig};
 use drive::storage::FileStorage;
-use drive::transport::CanFrame;
+use od_bus::CanFrame;
 use od_runtime::NodeId;
 use od_runtime::od::{Area, ObjectDictionary};
 

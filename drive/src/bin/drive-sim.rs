@@ -2,14 +2,14 @@
 //!
 //! ```text
 //! drive-sim run --device drvi --node-id 2 [--dcf FILE] [--machine PRESET|FILE] [--device akd --node-id 3 ...]
-//!               [--state-dir DIR] (--listen 127.0.0.1:0 | --bus tcp://127.0.0.1:29536/can0)
+//!               [--state-dir DIR] (--listen 127.0.0.1:0 | --bus socketcand://127.0.0.1:29536/can0)
 //!               [--trace FILE.csv] [--plot FILE.svg] [--trace-interval-ms 5]
 //!               [hub limits with --listen] [--reconnect-ms 100 with --bus]
 //! drive-sim demo [--device drvi] [--plot demo.svg] [--trace demo.csv]   the main job, in process
 //! drive-sim hub --listen 127.0.0.1:29536        socketcand-compatible hub (python-can connects to it)
 //!               [--max-clients 1024] [--handshake-timeout-ms 5000] [--max-rate 20000] [--bitrate BITS_PER_S]
-//! drive-sim dump --bus tcp://127.0.0.1:29536/can0 [--count N] [--timeout SECONDS]
-//! drive-sim send --bus tcp://127.0.0.1:29536/can0 601#4041600000000000 000#0100 ...
+//! drive-sim dump --bus socketcand://127.0.0.1:29536/can0 [--count N] [--timeout SECONDS]
+//! drive-sim send --bus socketcand://127.0.0.1:29536/can0 601#4041600000000000 000#0100 ...
 //! ```
 //!
 //! `run` simulates devices: each `--device` starts a group that the following `--node-id`,
@@ -31,7 +31,7 @@
 //!
 //! A device on `--bus` survives the bus: when its connection fails it keeps its state and runs
 //! on, and reconnects with backoff. The hub limits (`hub`, `run --listen`) are described in
-//! `drive::transport::HubConfig`: a full hub makes room by closing the longest-idle client that
+//! `od_bus::HubConfig`: a full hub makes room by closing the longest-idle client that
 //! never sent a frame, a flooding client is slowed down, a slow reader loses frames (logged)
 //! rather than its connection, and `--bitrate` emulates the wire. `dump` reports frames the hub
 //! dropped for it.
@@ -51,7 +51,7 @@ use clap::{ArgMatches, Args, CommandFactory, FromArgMatches, Parser, Subcommand}
 use drive::drives::demo::{self, DemoOptions};
 use drive::drives::{DeviceApps, machine};
 use drive::node::{AnyNode, Backoff, BusEvent, DeviceKind, MonotonicClock, NodeConfig};
-use drive::transport::{BusSpec, CanFrame, DEFAULT_CHANNEL, Endpoint, Hub, HubConfig, TransportError};
+use od_bus::{BusAddr, CanFrame, DEFAULT_CHANNEL, Endpoint, Hub, HubConfig, TransportError};
 
 #[derive(Debug, Parser)]
 #[command(name = "drive-sim", version, about = "Simulated CANopen drives and the buses to reach them")]
@@ -171,9 +171,10 @@ struct RunArgs {
     /// Start a hub on this address (port 0 picks a free port) and put the devices on it.
     #[arg(long)]
     listen: Option<String>,
-    /// Join a running bus: tcp://HOST:PORT[/CHANNEL] or socketcan:IFACE.
-    #[arg(long)]
-    bus: Option<BusSpec>,
+    /// Join a running bus: socketcand://HOST:PORT/CHANNEL (a hub; tcp:// is the same) or
+    /// socketcan://IFACE.
+    #[arg(long, value_parser = parse_bus)]
+    bus: Option<BusAddr>,
     /// Hub channel the devices are put on with --listen.
     #[arg(long, default_value = DEFAULT_CHANNEL)]
     channel: String,
@@ -205,11 +206,24 @@ fn parse_kind(s: &str) -> Result<DeviceKind, String> {
     s.parse()
 }
 
+/// A `--bus` address. An in-memory bus (`mem://`) lives inside one process, so `drive-sim`
+/// would be alone on it: refused, with the forms that reach other programs.
+fn parse_bus(text: &str) -> Result<BusAddr, String> {
+    match text.parse::<BusAddr>().map_err(|e| e.to_string())? {
+        BusAddr::Memory { .. } => Err(format!(
+            "{text}: an in-memory bus lives inside one process and nothing else would be on it; \
+             give socketcand://HOST:PORT/CHANNEL (a drive-sim hub) or socketcan://IFACE"
+        )),
+        addr => Ok(addr),
+    }
+}
+
 #[derive(Debug, Args)]
 struct DumpArgs {
-    /// Bus to listen on: tcp://HOST:PORT[/CHANNEL] or socketcan:IFACE.
-    #[arg(long)]
-    bus: BusSpec,
+    /// Bus to listen on: socketcand://HOST:PORT/CHANNEL (a hub; tcp:// is the same) or
+    /// socketcan://IFACE.
+    #[arg(long, value_parser = parse_bus)]
+    bus: BusAddr,
     /// Stop after this many frames.
     #[arg(long)]
     count: Option<u64>,
@@ -220,9 +234,10 @@ struct DumpArgs {
 
 #[derive(Debug, Args)]
 struct SendArgs {
-    /// Bus to send on: tcp://HOST:PORT[/CHANNEL] or socketcan:IFACE.
-    #[arg(long)]
-    bus: BusSpec,
+    /// Bus to send on: socketcand://HOST:PORT/CHANNEL (a hub; tcp:// is the same) or
+    /// socketcan://IFACE.
+    #[arg(long, value_parser = parse_bus)]
+    bus: BusAddr,
     /// Frames, such as 601#4041600000000000 or 00000123#R2.
     #[arg(required = true)]
     frames: Vec<CanFrame>,
@@ -487,7 +502,7 @@ fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
 
 fn quiet_hub(config: HubConfig) -> HubConfig {
     config.with_observer(std::sync::Arc::new(|event| {
-        use drive::transport::HubEvent::*;
+        use od_bus::HubEvent::*;
         if matches!(
             event,
             Overflow { .. }

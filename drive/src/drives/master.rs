@@ -25,7 +25,7 @@ use od_runtime::Micros;
 use od_runtime::cia402::State;
 
 use crate::node::Sim;
-use crate::transport::{CanFrame, Endpoint, LocalEndpoint};
+use od_bus::{CanFrame, Endpoint, LocalEndpoint};
 
 /// Why an SDO transfer failed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -1,5 +1,5 @@
 //! Running a device: an od-runtime `Device` over a generated dictionary, an application
-//! ([`DriveApp`]) and a clock, on any [`Endpoint`](crate::transport::Endpoint).
+//! ([`DriveApp`]) and a clock, on any [`Endpoint`](od_bus::Endpoint).
 //!
 //! ```text
 //!            frames ─────► Node::handle ──► od-runtime Device ──► events ──► DriveApp::on_event
@@ -15,7 +15,7 @@
 //!   (`drive-sim`, [`Sim`]).
 //! * [`run`] drives a node on an endpoint in real time with a [`Clock`] ([`MonotonicClock`]),
 //!   until a stop flag is set or the bus closes.
-//! * [`Sim`] runs nodes on a [`MemoryBus`](crate::transport::MemoryBus) in virtual time:
+//! * [`Sim`] runs nodes on a [`MemoryBus`](od_bus::MemoryBus) in virtual time:
 //!   deterministic multi-device tests.
 //! * [`DeviceKind`] builds a node for one of the project's devices (DRVI, DRCS, AKD) from a
 //!   [`NodeConfig`]; [`Apps`] chooses the application each kind runs.
@@ -47,7 +47,7 @@
 //!
 //! ```
 //! use drive::node::{DefaultApp, Node, NodeStorage};
-//! use drive::transport::CanFrame;
+//! use od_bus::CanFrame;
 //! use od_runtime::NodeId;
 //!
 //! let id = NodeId::new(2).unwrap();
@@ -76,7 +76,7 @@ use std::collections::VecDeque;
 use od_runtime::od::{AbortCode, ObjectDictionary};
 use od_runtime::{Device, Event, Frame, Micros, NmtState, NodeId, Storage, WriteSource};
 
-use crate::transport::CanFrame;
+use od_bus::CanFrame;
 
 pub use app::{Ctx, DefaultApp, DriveApp, EMCY_HEARTBEAT_OR_GUARDING, EMCY_RPDO_TIMEOUT, LossRecord, WriteRequest};
 pub use devices::{Apps, DefaultApps, DeviceKind, NodeConfig, NodeSetupError};

@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 use od_runtime::Micros;
 
 use super::AnyNode;
-use crate::transport::{Endpoint, TransportError};
+use od_bus::{Endpoint, TransportError};
 
 /// A source of the current time in microseconds.
 pub trait Clock {

@@ -3,7 +3,7 @@
 use od_runtime::Micros;
 
 use super::AnyNode;
-use crate::transport::{Endpoint, LocalEndpoint, MemoryBus};
+use od_bus::{Endpoint, LocalEndpoint, MemoryBus};
 
 /// Nodes on a [`MemoryBus`], run in virtual time: the same inputs give the same frames, in the
 /// same order, at the same virtual times, however fast the machine is.
@@ -14,7 +14,7 @@ use crate::transport::{Endpoint, LocalEndpoint, MemoryBus};
 ///
 /// ```
 /// use drive::node::{DefaultApps, DeviceKind, NodeConfig, Sim};
-/// use drive::transport::{CanFrame, Endpoint};
+/// use od_bus::{CanFrame, Endpoint};
 ///
 /// let mut sim = Sim::new();
 /// let mut master = sim.endpoint();

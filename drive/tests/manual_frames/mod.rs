@@ -3,7 +3,7 @@
 //! through a [`Master`] on the virtual clock.
 
 use drive::drives::master::Master;
-use drive::transport::CanFrame;
+use od_bus::CanFrame;
 
 /// `"603 2B 40 60 00 06 00 00 00"` as a frame.
 pub fn frame(text: &str) -> CanFrame {

@@ -1,9 +1,9 @@
 //! The firmware's application logic on the host: [`Firmware`] on the in-memory bus of the
-//! `drive` crate, through an `embedded_can::nb::Can` adapter, driven by a master made of
+//! `od-bus` crate, through an `embedded_can::nb::Can` adapter, driven by a master made of
 //! plain frames (NMT, SDO, SYNC), exactly as the binary runs it on CAN1.
 
-use drive::transport::{CanFrame, Endpoint, LocalEndpoint, MemoryBus};
 use firmware::Firmware;
+use od_bus::{CanFrame, Endpoint, LocalEndpoint, MemoryBus};
 use od_runtime::{Frame, NodeId};
 
 const NODE: u8 = 5;

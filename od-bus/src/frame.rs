@@ -19,6 +19,10 @@ pub enum FrameError {
     /// Text that is not a frame in `cansend` notation (`601#2B406000`, `701#R`, `12345678#00`).
     #[error("not a frame in cansend notation ({0}); expected e.g. 601#2B40600006000000 or 701#R")]
     Notation(&'static str),
+    /// A frame with an extended identifier where only standard ones exist (CANopen's frames,
+    /// `od_runtime::Frame`).
+    #[error("extended CAN id {0:#x} where only standard (11-bit) ids are used")]
+    Extended(u32),
 }
 
 /// One classic CAN 2.0 frame: an 11-bit (standard) or 29-bit (extended) identifier, the remote
@@ -31,7 +35,7 @@ pub enum FrameError {
 /// [`CanFrame::from_parts`] and the accessors.
 ///
 /// ```
-/// use drive::transport::CanFrame;
+/// use od_bus::CanFrame;
 /// let sdo = CanFrame::standard(0x601, &[0x40, 0x41, 0x60, 0x00, 0, 0, 0, 0]).unwrap();
 /// assert_eq!(sdo.id(), 0x601);
 /// assert_eq!(sdo.data(), &[0x40, 0x41, 0x60, 0x00, 0, 0, 0, 0]);
@@ -197,6 +201,30 @@ impl FromStr for CanFrame {
     }
 }
 
+/// A frame of the device and master protocol core: always a valid standard frame.
+#[cfg(feature = "od-runtime")]
+impl From<od_runtime::frame::Frame> for CanFrame {
+    fn from(frame: od_runtime::frame::Frame) -> Self {
+        let data = *frame.raw();
+        // An od-runtime frame has an 11-bit id and at most 8 bytes: every field fits.
+        Self { id: u32::from(frame.id()), extended: false, rtr: frame.is_rtr(), dlc: frame.len() as u8, data }
+    }
+}
+
+/// The protocol core's frame; extended identifiers have none ([`FrameError::Extended`]).
+#[cfg(feature = "od-runtime")]
+impl TryFrom<CanFrame> for od_runtime::frame::Frame {
+    type Error = FrameError;
+
+    fn try_from(frame: CanFrame) -> Result<Self, FrameError> {
+        if frame.extended {
+            return Err(FrameError::Extended(frame.id));
+        }
+        // A standard id is at most 0x7FF, so the cast is exact.
+        Ok(Self::from_parts(frame.id as u16, frame.rtr, frame.dlc, frame.data))
+    }
+}
+
 /// Value of one ASCII hex digit.
 pub(crate) fn hex_digit(byte: u8) -> Option<u8> {
     match byte {
@@ -248,6 +276,26 @@ mod tests {
         assert_eq!(ext.to_string(), "00001234#00");
         let dotted: CanFrame = "123#01.02.0a".parse().unwrap();
         assert_eq!(dotted.data(), &[1, 2, 10]);
+    }
+
+    #[cfg(feature = "od-runtime")]
+    #[test]
+    fn od_runtime_frames_convert_both_ways() {
+        use od_runtime::frame::Frame;
+        for id in [0u16, 0x080, 0x601, 0x7FF] {
+            for len in 0..=8usize {
+                let data: Vec<u8> = (1..=len as u8).collect();
+                let theirs = Frame::new(id, &data).unwrap();
+                let ours = CanFrame::from(theirs);
+                assert_eq!(ours, CanFrame::standard(u32::from(id), &data).unwrap());
+                assert_eq!(Frame::try_from(ours), Ok(theirs));
+            }
+            let rtr = Frame::remote(id, 1).unwrap();
+            assert_eq!(CanFrame::from(rtr), CanFrame::remote(u32::from(id), false, 1).unwrap());
+            assert_eq!(Frame::try_from(CanFrame::from(rtr)), Ok(rtr));
+        }
+        let ext = CanFrame::extended(0x601, &[1]).unwrap();
+        assert_eq!(Frame::try_from(ext), Err(FrameError::Extended(0x601)));
     }
 
     #[test]

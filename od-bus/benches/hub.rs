@@ -7,13 +7,13 @@
 //! * `memory_bus/relay`: one endpoint to another on the in-memory bus.
 //!
 //! Criterion reports the throughput in elements (frames) per second. Run with
-//! `cargo bench -p drive --bench hub`.
+//! `cargo bench -p od-bus --bench hub`.
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use drive::transport::{CanFrame, Endpoint, Hub, HubConfig, MemoryBus, SocketcandClient};
+use od_bus::{CanFrame, Endpoint, Hub, HubConfig, MemoryBus, SocketcandClient};
 
 /// Frames sent ahead of those received; well under the hub's per-client queue (4096).
 const WINDOW: u64 = 256;

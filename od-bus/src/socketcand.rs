@@ -34,10 +34,9 @@
 
 use std::fmt::{self, Write as _};
 use std::str::FromStr;
-use std::time::{SystemTime, UNIX_EPOCH};
 
-use super::CanFrame;
-use super::frame::{FrameError, hex_byte, hex_digit};
+use crate::frame::{CanFrame, FrameError, hex_byte, hex_digit};
+pub use crate::timestamp::Timestamp;
 
 /// Longest message accepted, from `<` to `>` inclusive. The longest valid message, a `frame`
 /// with an extended id, a 20-digit second count and eight bytes, is about 70 bytes; an `open`
@@ -46,42 +45,6 @@ pub const MAX_MESSAGE_LEN: usize = 256;
 
 /// Longest channel name a client may open (socketcand itself allows 16, an interface name).
 pub const MAX_CHANNEL_LEN: usize = 64;
-
-/// Reception time of a frame, as `seconds.microseconds` since the Unix epoch.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
-pub struct Timestamp {
-    secs: u64,
-    micros: u32,
-}
-
-impl Timestamp {
-    /// A timestamp; `None` when `micros` is a million or more.
-    pub fn new(secs: u64, micros: u32) -> Option<Self> {
-        (micros < 1_000_000).then_some(Self { secs, micros })
-    }
-
-    /// The current wall-clock time (zero if the clock is before 1970).
-    pub fn now() -> Self {
-        let since = SystemTime::now().duration_since(UNIX_EPOCH).unwrap_or_default();
-        Self { secs: since.as_secs(), micros: since.subsec_micros() }
-    }
-
-    /// Whole seconds.
-    pub fn secs(&self) -> u64 {
-        self.secs
-    }
-
-    /// Microseconds within the second, below 1 000 000.
-    pub fn micros(&self) -> u32 {
-        self.micros
-    }
-}
-
-impl fmt::Display for Timestamp {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}.{:06}", self.secs, self.micros)
-    }
-}
 
 impl FromStr for Timestamp {
     type Err = ParseError;
@@ -103,7 +66,8 @@ impl FromStr for Timestamp {
             let digit = fraction.as_bytes().get(i).map_or(0, |b| u32::from(b - b'0'));
             micros = micros * 10 + digit;
         }
-        Ok(Self { secs, micros })
+        // Six digits at most: below a million.
+        Self::new(secs, micros).ok_or_else(bad)
     }
 }
 
@@ -455,7 +419,7 @@ enum State {
 /// the input, and no input makes it panic.
 ///
 /// ```
-/// use drive::transport::socketcand::{Decoder, Message};
+/// use od_bus::socketcand::{Decoder, Message};
 /// let mut decoder = Decoder::new();
 /// let mut seen = Vec::new();
 /// decoder.feed(b"< hi >< ok", |m| seen.push(m));

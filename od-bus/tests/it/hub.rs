@@ -7,7 +7,7 @@ use std::net::{SocketAddr, TcpStream};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use drive::transport::{CanFrame, Endpoint, Hub, HubConfig, HubEvent, SocketcandClient, TransportError};
+use od_bus::{CanFrame, Endpoint, Hub, HubConfig, HubEvent, SocketcandClient, TransportError};
 
 const WAIT: Duration = Duration::from_secs(15);
 
@@ -556,7 +556,7 @@ fn an_emulated_wire_carries_no_more_than_its_bitrate_and_arbitrates_by_identifie
     let mut bits = 0;
     while order.len() < 4 {
         let frame = listener.recv_timeout(Duration::from_secs(10)).unwrap().expect("frames arrive");
-        bits += drive::transport::wire::frame_bits(&frame);
+        bits += od_bus::wire::frame_bits(&frame);
         order.push(frame.id());
     }
     assert_eq!(order, [0x700, 0x100, 0x200, 0x300]);
@@ -588,7 +588,7 @@ fn a_tcp_client_sending_more_than_the_wire_carries_waits_for_it() {
     }
     let _client = writer.join().unwrap();
     assert_eq!(listener.dropped(), 0, "a TCP sender waits; nothing is lost");
-    let least = f64::from(count * drive::transport::wire::frame_bits(&frame)) / f64::from(bitrate) - 0.005;
+    let least = f64::from(count * od_bus::wire::frame_bits(&frame)) / f64::from(bitrate) - 0.005;
     assert!(start.elapsed().as_secs_f64() >= least, "{:?}, at least {least:.3} s", start.elapsed());
 }
 

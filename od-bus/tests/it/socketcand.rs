@@ -1,8 +1,8 @@
 //! Property tests of the socketcand protocol: what is printed parses back to the same thing,
 //! and no input, however hostile, makes the decoder panic or grow without bound.
 
-use drive::transport::CanFrame;
-use drive::transport::socketcand::{Decoder, MAX_MESSAGE_LEN, Message, Timestamp};
+use od_bus::CanFrame;
+use od_bus::socketcand::{Decoder, MAX_MESSAGE_LEN, Message, Timestamp};
 use proptest::prelude::*;
 
 fn any_frame() -> impl Strategy<Value = CanFrame> {

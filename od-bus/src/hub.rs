@@ -20,7 +20,7 @@
 //!   one refused.
 //! * Floods: a client sending faster than [`HubConfig::max_rate`] frames per second is slowed
 //!   down (its reader pauses, so TCP pushes back on it); the others keep their share.
-//! * With [`HubConfig::bitrate`] every channel is an emulated wire ([`super::wire`]): it
+//! * With [`HubConfig::bitrate`] every channel is an emulated wire ([`crate::wire`]): it
 //!   carries what a CAN bus of that bit rate carries, frames arbitrated by identifier, and a
 //!   client sending more waits for the wire.
 
@@ -33,10 +33,13 @@ use std::sync::{Arc, Mutex, Weak};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use super::bus::{Channel, Delivery, LocalEndpoint, MemberId, Sink, next_member_id};
-use super::queue::{BoundedQueue, PushError, lock};
-use super::socketcand::{Decoder, Message, ParseError, Timestamp, parse_channel};
-use super::{CanFrame, TransportError};
+use crate::bus::{Channel, LocalEndpoint};
+use crate::error::TransportError;
+use crate::frame::CanFrame;
+use crate::queue::{BoundedQueue, PushError, lock};
+use crate::sink::{Delivery, MemberId, Sink, next_member_id};
+use crate::socketcand::{Decoder, Message, ParseError, parse_channel};
+use crate::timestamp::Timestamp;
 
 /// Receives every [`HubEvent`]; called from the hub's threads, so it must be quick.
 pub type HubObserver = Arc<dyn Fn(&HubEvent) + Send + Sync>;
@@ -64,7 +67,7 @@ pub struct HubConfig {
     /// reading from them for a while). 0: no limit.
     pub max_rate: u32,
     /// Emulate a CAN bus of this many bits per second on every channel (see
-    /// [`super::wire`]); `None`: frames are relayed as fast as they come.
+    /// [`crate::wire`]); `None`: frames are relayed as fast as they come.
     pub bitrate: Option<u32>,
     /// Frames dropped for a slow client are logged (and reported to clients that asked with
     /// `< dropreport >`) at most this often.
@@ -286,7 +289,7 @@ impl fmt::Display for HubEvent {
 ///
 /// ```
 /// use std::time::Duration;
-/// use drive::transport::{CanFrame, Endpoint, Hub, HubConfig, SocketcandClient};
+/// use od_bus::{CanFrame, Endpoint, Hub, HubConfig, SocketcandClient};
 ///
 /// let hub = Hub::bind("127.0.0.1:0", HubConfig::default().quiet()).unwrap();
 /// let mut device = hub.attach("can0").unwrap();

@@ -17,10 +17,10 @@ use std::collections::VecDeque;
 use std::sync::{Condvar, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
-use super::CanFrame;
-use super::bus::MemberId;
-use super::queue::lock;
-use super::socketcand::Timestamp;
+use crate::frame::CanFrame;
+use crate::queue::lock;
+use crate::sink::MemberId;
+use crate::timestamp::Timestamp;
 
 /// Frames one member may have waiting for the wire.
 pub(crate) const TX_QUEUE: usize = 16;

@@ -6,64 +6,26 @@
 //! hub keeps one channel per name that TCP clients open, and its in-process endpoints are the
 //! same [`LocalEndpoint`] type.
 
+use std::collections::HashMap;
 use std::fmt;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock, Weak};
 use std::time::Duration;
 
-use super::queue::{BoundedQueue, PushError, lock};
-use super::socketcand::Timestamp;
-use super::wire::Wire;
-use super::{CanFrame, Endpoint, TransportError};
-
-/// Identifies one member of a channel (an endpoint or a TCP client), unique in the process.
-pub(crate) type MemberId = u64;
-
-pub(crate) fn next_member_id() -> MemberId {
-    static NEXT: AtomicU64 = AtomicU64::new(1);
-    NEXT.fetch_add(1, Ordering::Relaxed)
-}
-
-/// What happened to a frame handed to a [`Sink`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Delivery {
-    /// Queued for the member.
-    Accepted,
-    /// The member's queue was full; the frame was dropped and the member stays.
-    Dropped,
-    /// The member is gone (closed, or disconnected for overflowing); remove it.
-    Gone,
-}
-
-/// The receiving side of a channel member.
-pub(crate) trait Sink: Send + Sync {
-    /// Hands over a frame without blocking.
-    fn deliver(&self, frame: CanFrame, at: Timestamp) -> Delivery;
-    /// Closes the member for good (the hub is shutting down).
-    fn close(&self);
-    /// Hands over the frames of `batch` not sent by `me`, in order (an emulated wire delivers
-    /// what is due in one go). The default hands them over one by one.
-    fn deliver_batch(&self, batch: &[(MemberId, CanFrame)], me: MemberId, at: Timestamp) -> Delivery {
-        let mut result = Delivery::Accepted;
-        for (from, frame) in batch {
-            if *from != me {
-                match self.deliver(*frame, at) {
-                    Delivery::Gone => return Delivery::Gone,
-                    Delivery::Dropped => result = Delivery::Dropped,
-                    Delivery::Accepted => {}
-                }
-            }
-        }
-        result
-    }
-}
+use crate::endpoint::Endpoint;
+use crate::error::TransportError;
+use crate::frame::CanFrame;
+use crate::queue::{BoundedQueue, PushError, lock};
+use crate::sink::{Delivery, MemberId, Sink, next_member_id};
+use crate::timestamp::Timestamp;
+use crate::wire::Wire;
 
 /// One CAN bus: every member receives what the others relay.
 ///
 /// Without a [`Wire`] a relayed frame reaches the members at once, however many are relayed.
 /// With one (`--bitrate`), frames wait in their sender's transmit queue and the wire carries
 /// them one at a time, each taking as long as it takes on a real CAN bus of that bit rate,
-/// the lowest identifier first when several wait (see [`wire`](super::wire)).
+/// the lowest identifier first when several wait (see [`wire`](crate::wire)).
 pub(crate) struct Channel {
     name: String,
     members: Mutex<Vec<(MemberId, Arc<dyn Sink>)>>,
@@ -240,7 +202,7 @@ impl Sink for Inbox {
 }
 
 /// An endpoint living in this process, attached to a [`MemoryBus`] or to a channel of a
-/// [`Hub`](super::Hub). It leaves the bus when dropped.
+/// [`Hub`](crate::Hub). It leaves the bus when dropped.
 ///
 /// Sending never blocks: the frame is copied into the receive queue of every other member. A
 /// member whose queue is full loses the frame (like a CAN controller's receive overrun) and the
@@ -327,7 +289,7 @@ impl fmt::Debug for LocalEndpoint {
 /// their own threads.
 ///
 /// ```
-/// use drive::transport::{CanFrame, Endpoint, MemoryBus};
+/// use od_bus::{CanFrame, Endpoint, MemoryBus};
 /// let bus = MemoryBus::new();
 /// let mut master = bus.endpoint();
 /// let mut node = bus.endpoint();
@@ -357,6 +319,32 @@ impl MemoryBus {
         Self { channel: Arc::new(Channel::new("memory")), capacity: capacity.max(1) }
     }
 
+    /// The bus of this process called `name`, the one the address `mem://NAME` opens
+    /// (`mem://` is the name ""): every call with the same name returns the same bus, as long as
+    /// something still holds it (a `MemoryBus` or an endpoint); after that the name starts a
+    /// new, empty bus. This is how code that opens its bus from an address string (an async
+    /// master, say) and devices attached in the same process meet.
+    ///
+    /// ```
+    /// use od_bus::{CanFrame, Endpoint, MemoryBus};
+    /// let bus = MemoryBus::named("line-1");
+    /// let mut device = bus.endpoint();
+    /// let mut master = od_bus::open("mem://line-1").unwrap();
+    /// master.send(CanFrame::standard(0x000, &[0x01, 0x00]).unwrap()).unwrap();
+    /// assert_eq!(device.try_recv().unwrap().unwrap().data(), &[0x01, 0x00]);
+    /// ```
+    pub fn named(name: &str) -> Self {
+        static NAMED: OnceLock<Mutex<HashMap<String, Weak<Channel>>>> = OnceLock::new();
+        let mut named = lock(NAMED.get_or_init(Default::default));
+        if let Some(channel) = named.get(name).and_then(Weak::upgrade) {
+            return Self { channel, capacity: Self::DEFAULT_CAPACITY };
+        }
+        named.retain(|_, channel| channel.strong_count() > 0);
+        let channel = Arc::new(Channel::new(name));
+        named.insert(name.to_owned(), Arc::downgrade(&channel));
+        Self { channel, capacity: Self::DEFAULT_CAPACITY }
+    }
+
     /// Attaches a new endpoint. It receives every frame sent by another endpoint from now on.
     pub fn endpoint(&self) -> LocalEndpoint {
         LocalEndpoint::attach(Arc::clone(&self.channel), self.capacity, None)
@@ -365,6 +353,17 @@ impl MemoryBus {
     /// Number of endpoints attached.
     pub fn endpoint_count(&self) -> usize {
         self.channel.member_count()
+    }
+
+    /// The channel, for the other kinds of member (the async endpoints).
+    #[cfg_attr(not(feature = "tokio"), allow(dead_code))]
+    pub(crate) fn channel(&self) -> &Arc<Channel> {
+        &self.channel
+    }
+
+    /// Receive queue length of each endpoint.
+    pub fn capacity(&self) -> usize {
+        self.capacity
     }
 }
 

@@ -7,8 +7,103 @@ use std::io::{self, Read, Write};
 use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
 use std::time::{Duration, Instant};
 
-use super::socketcand::{Decoder, Message, parse_channel};
-use super::{CanFrame, Endpoint, TransportError};
+use crate::endpoint::Endpoint;
+use crate::error::TransportError;
+use crate::frame::CanFrame;
+use crate::socketcand::{Decoder, Message, parse_channel};
+
+/// The client's side of a socketcand session without the I/O: what to say in the handshake, and
+/// what the server's messages mean. The blocking [`SocketcandClient`] and the async client
+/// (`tokio` feature) both drive one, each over its own socket.
+#[derive(Debug)]
+pub(crate) struct ClientSession {
+    decoder: Decoder,
+    /// Messages other than frames, for the handshake (or an echo) to check.
+    replies: VecDeque<Message>,
+    remote_errors: u64,
+    last_remote_error: Option<String>,
+    /// Frames the server reported dropping for us (`< dropped N >`, our hub's extension).
+    server_dropped: u64,
+}
+
+/// Replies kept for a caller that is not waiting for them (after the handshake).
+const MAX_REPLIES: usize = 16;
+
+impl ClientSession {
+    pub(crate) fn new() -> Self {
+        Self {
+            decoder: Decoder::new(),
+            replies: VecDeque::new(),
+            remote_errors: 0,
+            last_remote_error: None,
+            server_dropped: 0,
+        }
+    }
+
+    /// The handshake, step by step: what to send (nothing first: the server speaks first with
+    /// `< hi >`) and the reply that must come back. Checks the channel name first.
+    pub(crate) fn handshake(channel: &str) -> Result<[(Option<Message>, Message); 3], TransportError> {
+        parse_channel(channel).map_err(|e| TransportError::Protocol(e.to_string()))?;
+        Ok([
+            (None, Message::Hi),
+            (Some(Message::Open(channel.to_owned())), Message::Ok),
+            (Some(Message::RawMode), Message::Ok),
+        ])
+    }
+
+    /// Sent once the handshake is done, with no reply: our hub then reports the frames it drops
+    /// for this client (`< dropped N >`); a real socketcand answers `< error ... >`, which is
+    /// only counted.
+    pub(crate) const AFTER_HANDSHAKE: Message = Message::DropReport;
+
+    /// Decodes what the socket gave: frames go to `on_frame`, drop reports and malformed
+    /// messages are counted, other messages kept as replies.
+    pub(crate) fn feed(&mut self, bytes: &[u8], mut on_frame: impl FnMut(CanFrame)) {
+        let (replies, errors, dropped) = (&mut self.replies, &mut self.remote_errors, &mut self.server_dropped);
+        self.decoder.feed(bytes, |message| match message {
+            Ok(Message::Frame { frame, .. }) => on_frame(frame),
+            Ok(Message::Dropped(total)) => *dropped = (*dropped).max(total),
+            Ok(other) => replies.push_back(other),
+            // A server sending garbage: nothing to answer, the frames around it still count.
+            Err(_) => *errors += 1,
+        });
+        if replies.len() > MAX_REPLIES {
+            replies.drain(..replies.len() - MAX_REPLIES);
+        }
+    }
+
+    /// The next reply, checked against `wanted`: `None` while none has come.
+    pub(crate) fn take_reply(&mut self, wanted: &Message) -> Option<Result<(), TransportError>> {
+        Some(match self.replies.pop_front()? {
+            reply if reply == *wanted => Ok(()),
+            Message::Error(text) => Err(TransportError::Protocol(format!("server refused: {text}"))),
+            other => Err(TransportError::Protocol(format!("expected {wanted}, got {other}"))),
+        })
+    }
+
+    /// Drops the replies nobody waits for, counting the `< error >` ones (outside a handshake
+    /// they report a problem with something we sent).
+    pub(crate) fn settle_replies(&mut self) {
+        while let Some(reply) = self.replies.pop_front() {
+            if let Message::Error(text) = reply {
+                self.remote_errors += 1;
+                self.last_remote_error = Some(text);
+            }
+        }
+    }
+
+    pub(crate) fn remote_errors(&self) -> u64 {
+        self.remote_errors
+    }
+
+    pub(crate) fn last_remote_error(&self) -> Option<&str> {
+        self.last_remote_error.as_deref()
+    }
+
+    pub(crate) fn server_dropped(&self) -> u64 {
+        self.server_dropped
+    }
+}
 
 /// A connection to a socketcand server in raw mode on one channel.
 ///
@@ -24,15 +119,10 @@ pub struct SocketcandClient {
     stream: TcpStream,
     peer: SocketAddr,
     channel: String,
-    decoder: Decoder,
+    session: ClientSession,
     frames: VecDeque<CanFrame>,
-    replies: VecDeque<Message>,
     buf: Vec<u8>,
     out: String,
-    remote_errors: u64,
-    last_remote_error: Option<String>,
-    /// Frames the server reported dropping for us (`< dropped N >`, our hub's extension).
-    server_dropped: u64,
     /// Frames dropped here because more than [`MAX_BUFFERED_FRAMES`] were waiting.
     buffer_dropped: u64,
 }
@@ -54,7 +144,7 @@ impl SocketcandClient {
 
     /// Like [`connect`](SocketcandClient::connect) with a chosen timeout per step.
     pub fn connect_timeout(addr: impl ToSocketAddrs, channel: &str, timeout: Duration) -> Result<Self, TransportError> {
-        parse_channel(channel).map_err(|e| TransportError::Protocol(e.to_string()))?;
+        let handshake = ClientSession::handshake(channel)?;
         let addrs = addr.to_socket_addrs().map_err(|e| TransportError::io("cannot resolve the server address", e))?;
         let mut last_error = None;
         let mut connected = None;
@@ -75,24 +165,19 @@ impl SocketcandClient {
             stream,
             peer,
             channel: channel.to_owned(),
-            decoder: Decoder::new(),
+            session: ClientSession::new(),
             frames: VecDeque::new(),
-            replies: VecDeque::new(),
             buf: vec![0; 16 * 1024],
             out: String::with_capacity(64),
-            remote_errors: 0,
-            last_remote_error: None,
-            server_dropped: 0,
             buffer_dropped: 0,
         };
-        client.expect(Message::Hi, timeout)?;
-        client.write(&Message::Open(channel.to_owned()))?;
-        client.expect(Message::Ok, timeout)?;
-        client.write(&Message::RawMode)?;
-        client.expect(Message::Ok, timeout)?;
-        // Our hub then reports frames it drops for us (see `lost`); it sends no reply. A real
-        // socketcand answers `< error ... >`, which is only counted.
-        client.write(&Message::DropReport)?;
+        for (say, reply) in handshake {
+            if let Some(message) = say {
+                client.write(&message)?;
+            }
+            client.expect(reply, timeout)?;
+        }
+        client.write(&ClientSession::AFTER_HANDSHAKE)?;
         Ok(client)
     }
 
@@ -108,12 +193,12 @@ impl SocketcandClient {
 
     /// `< error >` messages received since the handshake.
     pub fn remote_errors(&self) -> u64 {
-        self.remote_errors
+        self.session.remote_errors()
     }
 
     /// Text of the last `< error >` message received.
     pub fn last_remote_error(&self) -> Option<&str> {
-        self.last_remote_error.as_deref()
+        self.session.last_remote_error()
     }
 
     /// Sends `< echo >` and waits for the server to echo it: a round trip through the server.
@@ -133,12 +218,8 @@ impl SocketcandClient {
     fn expect(&mut self, wanted: Message, timeout: Duration) -> Result<(), TransportError> {
         let deadline = Instant::now() + timeout;
         loop {
-            if let Some(reply) = self.replies.pop_front() {
-                return match reply {
-                    reply if reply == wanted => Ok(()),
-                    Message::Error(text) => Err(TransportError::Protocol(format!("server refused: {text}"))),
-                    other => Err(TransportError::Protocol(format!("expected {wanted}, got {other}"))),
-                };
+            if let Some(checked) = self.session.take_reply(&wanted) {
+                return checked;
             }
             if !self.read_some(deadline)? {
                 return Err(TransportError::Protocol(format!("no {wanted} from the server within {timeout:?}")));
@@ -168,31 +249,20 @@ impl SocketcandClient {
             Err(error) if error.kind() == io::ErrorKind::Interrupted => return Ok(true),
             Err(error) => return Err(map_io("cannot read from the server", error)),
         };
-        let (frames, replies) = (&mut self.frames, &mut self.replies);
-        let errors = &mut self.remote_errors;
-        let (server_dropped, buffer_dropped) = (&mut self.server_dropped, &mut self.buffer_dropped);
-        self.decoder.feed(&self.buf[..n], |message| match message {
-            Ok(Message::Frame { frame, .. }) => {
-                if frames.len() >= MAX_BUFFERED_FRAMES {
-                    frames.pop_front();
-                    *buffer_dropped += 1;
-                }
-                frames.push_back(frame);
+        let (frames, buffer_dropped) = (&mut self.frames, &mut self.buffer_dropped);
+        self.session.feed(&self.buf[..n], |frame| {
+            if frames.len() >= MAX_BUFFERED_FRAMES {
+                frames.pop_front();
+                *buffer_dropped += 1;
             }
-            Ok(Message::Dropped(total)) => *server_dropped = (*server_dropped).max(total),
-            Ok(other) => replies.push_back(other),
-            // A server sending garbage: nothing to answer, the frames around it still count.
-            Err(_) => *errors += 1,
+            frames.push_back(frame);
         });
-        // Replies nobody waits for (after the handshake) are not kept.
-        if replies.len() > 16 {
-            replies.drain(..replies.len() - 16);
-        }
         Ok(true)
     }
 }
 
-fn map_io(context: &str, error: io::Error) -> TransportError {
+/// An I/O error as the bus sees it: the peer gone is [`TransportError::Closed`].
+pub(crate) fn map_io(context: &str, error: io::Error) -> TransportError {
     match error.kind() {
         io::ErrorKind::BrokenPipe
         | io::ErrorKind::ConnectionReset
@@ -216,12 +286,7 @@ impl Endpoint for SocketcandClient {
                 return Ok(Some(frame));
             }
             // Error replies that arrive outside a handshake are counted, not returned.
-            while let Some(reply) = self.replies.pop_front() {
-                if let Message::Error(text) = reply {
-                    self.remote_errors += 1;
-                    self.last_remote_error = Some(text);
-                }
-            }
+            self.session.settle_replies();
             if !self.read_some(deadline)? {
                 return Ok(None);
             }
@@ -229,7 +294,7 @@ impl Endpoint for SocketcandClient {
     }
 
     fn lost(&self) -> u64 {
-        self.server_dropped + self.buffer_dropped
+        self.session.server_dropped() + self.buffer_dropped
     }
 }
 
@@ -239,7 +304,7 @@ impl fmt::Debug for SocketcandClient {
             .field("peer", &self.peer)
             .field("channel", &self.channel)
             .field("buffered", &self.frames.len())
-            .field("remote_errors", &self.remote_errors)
+            .field("remote_errors", &self.session.remote_errors())
             .finish()
     }
 }

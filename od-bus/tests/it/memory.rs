@@ -2,7 +2,7 @@
 
 use std::time::{Duration, Instant};
 
-use drive::transport::{CanFrame, Endpoint, MemoryBus};
+use od_bus::{CanFrame, Endpoint, MemoryBus};
 use proptest::prelude::*;
 
 fn frame(id: u32, data: &[u8]) -> CanFrame {

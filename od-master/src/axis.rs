@@ -1,0 +1,500 @@
+//! A CiA 402 drive over SDO (and an RPDO for cyclic synchronous position).
+//!
+//! Every state change completes when the statusword (6041h) confirms it, never when the
+//! controlword was sent; every error says which drive, its state and statusword, and which
+//! object ([`AxisError`]).
+//!
+//! | operation | objects | method |
+//! |---|---|---|
+//! | to Operation enabled, fault reset on the way | 6040h, 6041h, 603Fh | [`Axis::enable`] |
+//! | mode of operation, confirmed | 6060h, 6061h | [`Axis::set_mode`] |
+//! | homing: method, speeds, acceleration, offset; attained or error | 6098h, 6099h, 609Ah, 607Ch | [`Axis::home`] |
+//! | profile position: set-point handshake (bit 4 / bit 12), change set immediately, relative; target reached | 607Ah, 6081h, 6083h, 6084h | [`Axis::set_point`], [`Axis::move_to`] |
+//! | profile velocity | 60FFh, 6083h, 6084h | [`Axis::run_velocity`] |
+//! | cyclic synchronous position: a set-point every SYNC | 1400h+, 1600h+, 607Ah | [`Axis::cyclic_position`], [`Csp::send`] |
+
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::time::Duration;
+
+use od_runtime::cia402::State;
+use od_runtime::master::{PdoField, PdoMapping, PdoValue};
+use od_runtime::od::DataType;
+use od_runtime::pdo::{Direction, MapEntry};
+use tokio::sync::watch;
+use tokio::time::Instant;
+
+use crate::error::{AxisError, AxisErrorKind, Error};
+use crate::node::{Node, SdoValue};
+
+const CONTROLWORD: u16 = 0x6040;
+const STATUSWORD: u16 = 0x6041;
+const MODE: u16 = 0x6060;
+const MODE_DISPLAY: u16 = 0x6061;
+const POSITION_ACTUAL: u16 = 0x6064;
+const TARGET_POSITION: u16 = 0x607A;
+
+/// Statusword bits.
+const SW_TARGET_REACHED: u16 = 1 << 10;
+const SW_BIT12: u16 = 1 << 12;
+const SW_BIT13: u16 = 1 << 13;
+
+/// Modes of operation (6060h).
+pub mod mode {
+    /// Profile position.
+    pub const PROFILE_POSITION: i8 = 1;
+    /// Profile velocity.
+    pub const PROFILE_VELOCITY: i8 = 3;
+    /// Homing.
+    pub const HOMING: i8 = 6;
+    /// Cyclic synchronous position.
+    pub const CYCLIC_SYNC_POSITION: i8 = 8;
+}
+
+/// How an [`Axis`] waits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AxisConfig {
+    /// How long each state change may take to show in the statusword (default 1 s).
+    pub state_timeout: Duration,
+    /// How often the statusword is read while waiting (default 10 ms).
+    pub poll: Duration,
+}
+
+impl Default for AxisConfig {
+    fn default() -> Self {
+        Self { state_timeout: Duration::from_secs(1), poll: Duration::from_millis(10) }
+    }
+}
+
+/// A homing run: the method (6098h) and, where given, the speeds, acceleration and offset
+/// written before it (unset ones keep the drive's values).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Homing {
+    /// The homing method (6098h).
+    pub method: i8,
+    /// Speed during search for switch (6099h sub 1).
+    pub speed_switch: Option<u32>,
+    /// Speed during search for zero (6099h sub 2).
+    pub speed_zero: Option<u32>,
+    /// Homing acceleration (609Ah).
+    pub acceleration: Option<u32>,
+    /// Home offset (607Ch).
+    pub offset: Option<i32>,
+    /// How long the homing may take (default 60 s).
+    pub timeout: Duration,
+}
+
+impl Homing {
+    /// Homing with `method` and the drive's own speeds.
+    pub fn method(method: i8) -> Self {
+        Self {
+            method,
+            speed_switch: None,
+            speed_zero: None,
+            acceleration: None,
+            offset: None,
+            timeout: Duration::from_secs(60),
+        }
+    }
+}
+
+/// A profile-position move's parameters; unset ones keep the drive's values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Move {
+    /// Profile velocity (6081h).
+    pub velocity: Option<u32>,
+    /// Profile acceleration (6083h).
+    pub acceleration: Option<u32>,
+    /// Profile deceleration (6084h).
+    pub deceleration: Option<u32>,
+    /// Controlword bit 6: the target is relative.
+    pub relative: bool,
+    /// Controlword bit 5, change set immediately: the new set-point replaces the running one.
+    pub immediate: bool,
+    /// How long the drive may take to acknowledge the set-point, and [`Axis::move_to`] to reach
+    /// the target (default 30 s).
+    pub timeout: Duration,
+}
+
+impl Default for Move {
+    fn default() -> Self {
+        Self {
+            velocity: None,
+            acceleration: None,
+            deceleration: None,
+            relative: false,
+            immediate: false,
+            timeout: Duration::from_secs(30),
+        }
+    }
+}
+
+/// A CiA 402 drive on a [`Node`].
+#[derive(Debug)]
+pub struct Axis {
+    node: Node,
+    config: AxisConfig,
+    /// The last statusword read (bit 16 set: none yet), for error messages.
+    last: AtomicU32,
+}
+
+const NONE: u32 = 1 << 16;
+
+impl Axis {
+    /// The drive on `node`, with the default [`AxisConfig`].
+    pub fn new(node: Node) -> Self {
+        Self::with_config(node, AxisConfig::default())
+    }
+
+    /// The drive on `node` with `config`.
+    pub fn with_config(node: Node, config: AxisConfig) -> Self {
+        Self { node, config, last: AtomicU32::new(NONE) }
+    }
+
+    /// The node.
+    pub fn node(&self) -> &Node {
+        &self.node
+    }
+
+    fn last_statusword(&self) -> Option<u16> {
+        let v = self.last.load(Ordering::Relaxed);
+        (v & NONE == 0).then_some(v as u16)
+    }
+
+    /// An error about `index`/`sub` with the drive's last known state.
+    fn error(&self, index: u16, sub: u8, kind: AxisErrorKind) -> Error {
+        let statusword = self.last_statusword();
+        Error::Axis(Box::new(AxisError {
+            node: self.node.id(),
+            state: statusword.and_then(State::from_statusword),
+            statusword,
+            index,
+            sub,
+            kind,
+        }))
+    }
+
+    async fn read<T: SdoValue>(&self, index: u16, sub: u8) -> Result<T, Error> {
+        self.node.read(index, sub).await.map_err(|e| self.error(index, sub, AxisErrorKind::Sdo(Box::new(e))))
+    }
+
+    /// A parameter or a target: writing it twice is writing it once, so it is retried.
+    async fn set<T: SdoValue>(&self, index: u16, sub: u8, value: T) -> Result<(), Error> {
+        self.node
+            .write_idempotent(index, sub, value)
+            .await
+            .map_err(|e| self.error(index, sub, AxisErrorKind::Sdo(Box::new(e))))
+    }
+
+    /// Writes the controlword (never retried: the drive acts on edges of its bits).
+    pub async fn controlword(&self, cw: u16) -> Result<(), Error> {
+        self.node
+            .write(CONTROLWORD, 0, cw)
+            .await
+            .map_err(|e| self.error(CONTROLWORD, 0, AxisErrorKind::Sdo(Box::new(e))))
+    }
+
+    /// Reads the statusword.
+    pub async fn statusword(&self) -> Result<u16, Error> {
+        let sw: u16 = self.read(STATUSWORD, 0).await?;
+        self.last.store(u32::from(sw), Ordering::Relaxed);
+        Ok(sw)
+    }
+
+    /// The CiA 402 state the statusword shows (`None` for a combination CiA 402 does not
+    /// define).
+    pub async fn state(&self) -> Result<Option<State>, Error> {
+        Ok(State::from_statusword(self.statusword().await?))
+    }
+
+    /// The position actual value (6064h).
+    pub async fn position(&self) -> Result<i32, Error> {
+        self.read(POSITION_ACTUAL, 0).await
+    }
+
+    /// The error code (603Fh), 0 when it cannot be read.
+    async fn error_code(&self) -> u16 {
+        self.node.read::<u16>(0x603F, 0).await.unwrap_or(0)
+    }
+
+    /// Reads the statusword every poll period until `done` holds for it; fails when the drive
+    /// faults (unless `done` accepts a fault) or `timeout` passes.
+    async fn wait(&self, what: &str, timeout: Duration, done: impl Fn(u16) -> bool) -> Result<u16, Error> {
+        let end = Instant::now() + timeout;
+        loop {
+            let sw = self.statusword().await?;
+            if done(sw) {
+                return Ok(sw);
+            }
+            if matches!(State::from_statusword(sw), Some(State::Fault | State::FaultReactionActive)) {
+                let error_code = self.error_code().await;
+                return Err(self.error(STATUSWORD, 0, AxisErrorKind::Fault { error_code }));
+            }
+            if Instant::now() >= end {
+                let timeout_ms = u64::try_from(timeout.as_millis()).unwrap_or(u64::MAX);
+                return Err(self.error(STATUSWORD, 0, AxisErrorKind::Timeout { what: what.to_owned(), timeout_ms }));
+            }
+            tokio::time::sleep(self.config.poll).await;
+        }
+    }
+
+    async fn wait_state(&self, want: State) -> Result<(), Error> {
+        let what = format!("{want:?}");
+        self.wait(&what, self.config.state_timeout, |sw| State::from_statusword(sw) == Some(want)).await.map(drop)
+    }
+
+    /// Takes the drive to Operation enabled from whatever state it is in: a fault reset (a
+    /// rising edge of bit 7) out of Fault, then shutdown, switch on and enable operation, each
+    /// step confirmed by the statusword.
+    pub async fn enable(&self) -> Result<(), Error> {
+        // At most: fault reaction → fault → reset → ready → switched on → enabled, and a
+        // quick stop on the way.
+        for _ in 0..8 {
+            let sw = self.statusword().await?;
+            let Some(state) = State::from_statusword(sw) else {
+                tokio::time::sleep(self.config.poll).await;
+                continue;
+            };
+            match state {
+                State::OperationEnabled => return Ok(()),
+                State::FaultReactionActive => {
+                    let what = "the end of the fault reaction";
+                    self.wait(what, self.config.state_timeout, |sw| {
+                        State::from_statusword(sw) != Some(State::FaultReactionActive)
+                    })
+                    .await?;
+                }
+                State::Fault => {
+                    self.controlword(0x0000).await?;
+                    self.controlword(0x0080).await?;
+                    let end = Instant::now() + self.config.state_timeout;
+                    loop {
+                        let sw = self.statusword().await?;
+                        if State::from_statusword(sw) != Some(State::Fault) {
+                            break;
+                        }
+                        if Instant::now() >= end {
+                            let error_code = self.error_code().await;
+                            return Err(self.error(CONTROLWORD, 0, AxisErrorKind::Fault { error_code }));
+                        }
+                        tokio::time::sleep(self.config.poll).await;
+                    }
+                    self.controlword(0x0000).await?;
+                }
+                State::NotReadyToSwitchOn => self.wait_state(State::SwitchOnDisabled).await?,
+                State::SwitchOnDisabled => {
+                    self.controlword(0x0006).await?;
+                    self.wait_state(State::ReadyToSwitchOn).await?;
+                }
+                State::ReadyToSwitchOn => {
+                    self.controlword(0x0007).await?;
+                    self.wait_state(State::SwitchedOn).await?;
+                }
+                State::SwitchedOn => {
+                    self.controlword(0x000F).await?;
+                    self.wait_state(State::OperationEnabled).await?;
+                }
+                State::QuickStopActive => {
+                    // Disable voltage (transition 12) and start over from Switch on disabled.
+                    self.controlword(0x0000).await?;
+                    self.wait_state(State::SwitchOnDisabled).await?;
+                }
+            }
+        }
+        self.wait_state(State::OperationEnabled).await
+    }
+
+    /// Shutdown: to Ready to switch on (power stage off), confirmed.
+    pub async fn disable(&self) -> Result<(), Error> {
+        self.controlword(0x0006).await?;
+        self.wait_state(State::ReadyToSwitchOn).await
+    }
+
+    /// Writes the mode of operation (6060h) and waits until 6061h shows it.
+    pub async fn set_mode(&self, mode: i8) -> Result<(), Error> {
+        let shown: i8 = self.read(MODE_DISPLAY, 0).await?;
+        if shown == mode {
+            return Ok(());
+        }
+        self.set(MODE, 0, mode).await?;
+        let end = Instant::now() + self.config.state_timeout;
+        loop {
+            let shown: i8 = self.read(MODE_DISPLAY, 0).await?;
+            if shown == mode {
+                return Ok(());
+            }
+            if Instant::now() >= end {
+                return Err(self.error(MODE_DISPLAY, 0, AxisErrorKind::Mode { wanted: mode, shown }));
+            }
+            tokio::time::sleep(self.config.poll).await;
+        }
+    }
+
+    /// Homes the drive: writes the method and the parameters given, enters homing mode, enables
+    /// the drive, starts the homing (bit 4) and waits for "homing attained" (bits 12 and 10),
+    /// failing on a homing error (bit 13), a fault, or the timeout. Returns the position
+    /// actual value (6064h) at the end.
+    pub async fn home(&self, homing: &Homing) -> Result<i32, Error> {
+        self.set(0x6098, 0, homing.method).await?;
+        if let Some(v) = homing.speed_switch {
+            self.set(0x6099, 1, v).await?;
+        }
+        if let Some(v) = homing.speed_zero {
+            self.set(0x6099, 2, v).await?;
+        }
+        if let Some(v) = homing.acceleration {
+            self.set(0x609A, 0, v).await?;
+        }
+        if let Some(v) = homing.offset {
+            self.set(0x607C, 0, v).await?;
+        }
+        self.set_mode(mode::HOMING).await?;
+        self.enable().await?;
+        self.controlword(0x000F).await?;
+        self.controlword(0x001F).await?;
+        let result = self
+            .wait("homing attained", homing.timeout, |sw| {
+                sw & SW_BIT13 != 0 || sw & (SW_BIT12 | SW_TARGET_REACHED) == SW_BIT12 | SW_TARGET_REACHED
+            })
+            .await;
+        let sw = match result {
+            Ok(sw) => sw,
+            Err(e) => {
+                // Stop the homing (a falling bit 4) before reporting.
+                let _ = self.node.write(CONTROLWORD, 0, 0x000Fu16).await;
+                return Err(e);
+            }
+        };
+        self.controlword(0x000F).await?;
+        if sw & SW_BIT13 != 0 {
+            return Err(self.error(0x6098, 0, AxisErrorKind::Bit13("homing error")));
+        }
+        self.position().await
+    }
+
+    /// Profile position: writes the target and the move's parameters, enters profile position
+    /// mode, enables the drive, and hands the set-point over: bit 4 up, wait for the
+    /// acknowledgement (bit 12), bit 4 down. Does not wait for the target.
+    pub async fn set_point(&self, target: i32, m: &Move) -> Result<(), Error> {
+        self.set_mode(mode::PROFILE_POSITION).await?;
+        if let Some(v) = m.velocity {
+            self.set(0x6081, 0, v).await?;
+        }
+        if let Some(v) = m.acceleration {
+            self.set(0x6083, 0, v).await?;
+        }
+        if let Some(v) = m.deceleration {
+            self.set(0x6084, 0, v).await?;
+        }
+        self.enable().await?;
+        let bits = 0x000F | if m.immediate { 1 << 5 } else { 0 } | if m.relative { 1 << 6 } else { 0 };
+        // A new set-point needs bit 4 low and the previous acknowledgement gone.
+        self.controlword(bits).await?;
+        self.wait("bit 12 clear before a new set-point", self.config.state_timeout, |sw| sw & SW_BIT12 == 0).await?;
+        self.set(TARGET_POSITION, 0, target).await?;
+        self.controlword(bits | 0x10).await?;
+        let acknowledged =
+            self.wait("set-point acknowledge", m.timeout.min(self.config.state_timeout), |sw| sw & SW_BIT12 != 0);
+        if let Err(e) = acknowledged.await {
+            let _ = self.node.write(CONTROLWORD, 0, bits).await;
+            return Err(match e {
+                Error::Axis(a) if matches!(a.kind, AxisErrorKind::Timeout { .. }) => {
+                    let timeout_ms = u64::try_from(m.timeout.min(self.config.state_timeout).as_millis()).unwrap_or(0);
+                    self.error(TARGET_POSITION, 0, AxisErrorKind::SetPoint { timeout_ms })
+                }
+                e => e,
+            });
+        }
+        self.controlword(bits).await
+    }
+
+    /// Waits for "target reached" (bit 10), failing on a following error (bit 13), a fault or
+    /// the timeout.
+    pub async fn wait_target_reached(&self, timeout: Duration) -> Result<(), Error> {
+        let sw = self.wait("target reached", timeout, |sw| sw & (SW_TARGET_REACHED | SW_BIT13) != 0).await?;
+        if sw & SW_TARGET_REACHED == 0 {
+            return Err(self.error(TARGET_POSITION, 0, AxisErrorKind::Bit13("following error")));
+        }
+        Ok(())
+    }
+
+    /// A profile-position move to its end: [`set_point`](Self::set_point), then
+    /// [`wait_target_reached`](Self::wait_target_reached). Returns the position actual value.
+    pub async fn move_to(&self, target: i32, m: &Move) -> Result<i32, Error> {
+        self.set_point(target, m).await?;
+        self.wait_target_reached(m.timeout).await?;
+        self.position().await
+    }
+
+    /// Profile velocity: enters the mode, writes the target velocity (60FFh) and the ramps
+    /// given, and enables the drive; it runs until told otherwise.
+    pub async fn run_velocity(
+        &self,
+        velocity: i32,
+        acceleration: Option<u32>,
+        deceleration: Option<u32>,
+    ) -> Result<(), Error> {
+        self.set_mode(mode::PROFILE_VELOCITY).await?;
+        if let Some(v) = acceleration {
+            self.set(0x6083, 0, v).await?;
+        }
+        if let Some(v) = deceleration {
+            self.set(0x6084, 0, v).await?;
+        }
+        self.set(0x60FF, 0, velocity).await?;
+        self.enable().await?;
+        self.controlword(0x000F).await
+    }
+
+    /// The velocity actual value (606Ch).
+    pub async fn velocity(&self) -> Result<i32, Error> {
+        self.read(0x606C, 0).await
+    }
+
+    /// Cyclic synchronous position: maps the target position (607Ah) into RPDO `rpdo`
+    /// (1..=512; communication 1400h + rpdo − 1, mapping 1600h + rpdo − 1) on COB-ID `cob_id`,
+    /// synchronous (every SYNC), starts the node (NMT), enters the mode and enables the drive.
+    /// The bus must send SYNC ([`Bus::start_sync`](crate::Bus::start_sync)); [`Csp::send`]
+    /// then streams one set-point per SYNC period.
+    pub async fn cyclic_position(&self, rpdo: u16, cob_id: u16) -> Result<Csp, Error> {
+        let k = rpdo.clamp(1, 512) - 1;
+        let (comm, map) = (0x1400 + k, 0x1600 + k);
+        let cob = u32::from(cob_id & 0x7FF);
+        self.set(comm, 1, cob | 0x8000_0000).await?;
+        self.set(map, 0, 0u8).await?;
+        self.set(map, 1, 0x607A_0020u32).await?;
+        self.set(map, 0, 1u8).await?;
+        self.set(comm, 2, 1u8).await?;
+        self.set(comm, 1, cob).await?;
+        let field =
+            PdoField { entry: MapEntry { index: TARGET_POSITION, sub: 0, bits: 32 }, data_type: DataType::Integer32 };
+        let mapping =
+            PdoMapping::from_fields(Direction::Receive, &[field]).map_err(|error| Error::Pdo { cob_id, error })?;
+        // The set-point to start from: where the drive is.
+        let here = self.position().await?;
+        self.set(TARGET_POSITION, 0, here).await?;
+        self.node.start().await?;
+        self.set_mode(mode::CYCLIC_SYNC_POSITION).await?;
+        self.enable().await?;
+        Ok(Csp { node: self.node.clone(), cob_id, mapping, syncs: self.node.bus().syncs() })
+    }
+}
+
+/// A cyclic synchronous position stream ([`Axis::cyclic_position`]).
+#[derive(Debug)]
+pub struct Csp {
+    node: Node,
+    cob_id: u16,
+    mapping: PdoMapping,
+    syncs: watch::Receiver<u64>,
+}
+
+impl Csp {
+    /// Waits for the next SYNC, then sends `position` as the next set-point: the drive takes it
+    /// at the SYNC after. Returns the number of SYNCs sent so far.
+    pub async fn send(&mut self, position: i32) -> Result<u64, Error> {
+        self.syncs.changed().await.map_err(|_| Error::Closed)?;
+        let n = *self.syncs.borrow_and_update();
+        self.node.bus().send_pdo(self.cob_id, &self.mapping, &[PdoValue::Signed(i64::from(position))]).await?;
+        Ok(n)
+    }
+}

@@ -1,0 +1,573 @@
+//! The bus task and its handle.
+//!
+//! One task owns the bus and every protocol machine of `od_runtime::master`; [`Bus`] handles
+//! (cheap to clone, usable from any task) send it commands and wait for the answers. The task
+//! runs as long as a handle exists, and ends when the bus is closed for good.
+//!
+//! SDO transfers use each node's default channel (requests on 600h + id, answers on
+//! 580h + id); PDOs, SYNC (080h), EMCY (080h + id) and heartbeats (700h + id) their CiA 301
+//! default identifiers, PDOs any identifier given.
+
+use std::collections::{HashMap, VecDeque};
+use std::sync::Arc;
+use std::time::Duration;
+
+use od_bus::CanFrame;
+use od_bus::tokio::{Bus as Link, BusReceiver, BusSender, LinkState};
+use od_runtime::master::nmt::{self, Target};
+use od_runtime::master::{
+    Done, Emergency, HeartbeatProducer, NodeMonitor, PdoMapping, PdoValue, SdoClient, SdoError, SyncProducer,
+    TransferError, Watch,
+};
+use od_runtime::od::AbortCode;
+use od_runtime::{Frame, Micros, NmtCommand, NodeId};
+use tokio::sync::{broadcast, mpsc, oneshot, watch};
+use tokio::time::Instant;
+
+use crate::error::Error;
+use crate::event::{EmcyTexts, Event};
+use crate::node::{Node, SdoOptions};
+
+/// How the bus task runs, and the defaults of its nodes.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Config {
+    /// The SDO options of a [`Node`] handle made by [`Bus::node`]: timeout 1 s, 2 retries of
+    /// reads and idempotent writes, normal (expedited or segmented) transfers, values up to
+    /// 4 KiB.
+    pub sdo: SdoOptions,
+    /// The master's own heartbeat: its node id and period, so drives that consume it stop when
+    /// this program dies. `None` (the default) sends none.
+    pub heartbeat: Option<(NodeId, Duration)>,
+    /// Events kept for a subscriber that does not read ([`Bus::events`]); past it the oldest
+    /// are dropped and the subscriber is told how many.
+    pub event_capacity: usize,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self { sdo: SdoOptions::default(), heartbeat: None, event_capacity: 1024 }
+    }
+}
+
+/// A received TPDO, decoded by the mapping it was subscribed with.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Tpdo {
+    /// The PDO's COB-ID.
+    pub cob_id: u16,
+    /// When the bus task received it.
+    pub at: Instant,
+    /// One value per mapped field.
+    pub values: Vec<PdoValue>,
+}
+
+/// A handle on the bus task: SDO transfers (through [`Node`]), NMT, events, SYNC and PDOs.
+/// Clones share the task; it ends when the last handle is dropped or the bus closes.
+#[derive(Clone, Debug)]
+pub struct Bus {
+    commands: mpsc::Sender<Command>,
+    events: broadcast::Sender<Event>,
+    frames: broadcast::Sender<CanFrame>,
+    syncs: watch::Receiver<u64>,
+    link: watch::Receiver<LinkState>,
+    sdo: SdoOptions,
+}
+
+/// A request for the task; each carries the channel of its answer.
+#[derive(Debug)]
+enum Command {
+    Sdo(SdoRequest),
+    Send(CanFrame, oneshot::Sender<Result<(), Error>>),
+    Watch { node: NodeId, watch: Option<Watch>, boot_timeout: Option<Duration>, reply: oneshot::Sender<()> },
+    Sync { period: Option<Duration>, counter: u8, reply: oneshot::Sender<Result<(), Error>> },
+    Tpdo { cob_id: u16, mapping: PdoMapping, to: mpsc::Sender<Tpdo> },
+    EmcyTexts { node: NodeId, texts: Arc<EmcyTexts> },
+}
+
+/// What an SDO request moves.
+#[derive(Debug)]
+pub(crate) enum Op {
+    /// Read a value of at most this many bytes.
+    Upload(usize),
+    /// Write this data; retried only when `idempotent`.
+    Download { data: Vec<u8>, idempotent: bool },
+}
+
+#[derive(Debug)]
+pub(crate) struct SdoRequest {
+    pub node: NodeId,
+    pub index: u16,
+    pub sub: u8,
+    pub op: Op,
+    pub options: SdoOptions,
+    pub reply: oneshot::Sender<Result<Vec<u8>, Error>>,
+}
+
+impl Bus {
+    /// Opens the bus at `addr` (`socketcand://HOST:PORT/CHANNEL`, `socketcan://IFACE`,
+    /// `mem://NAME`) and starts its task on the current tokio runtime.
+    pub async fn open(addr: &str, config: Config) -> Result<Self, Error> {
+        Ok(Self::start(Link::open(addr).await?, config))
+    }
+
+    /// Starts the task for a bus already open (a [`Link::attach`] to a test's memory bus, a
+    /// socketcand bus opened with other options) on the current tokio runtime.
+    pub fn start(link: Link, config: Config) -> Self {
+        let (commands, command_rx) = mpsc::channel(256);
+        let (events, _) = broadcast::channel(config.event_capacity.max(1));
+        let (frames, _) = broadcast::channel(4096);
+        let (sync_tx, syncs) = watch::channel(0);
+        let link_state = link.link();
+        let (tx, rx) = link.split();
+        let start = Instant::now();
+        let heartbeat = config.heartbeat.map(|(id, period)| HeartbeatProducer::new(id, micros(period)));
+        let task = Task {
+            tx,
+            rx,
+            link: link_state.clone(),
+            link_open: true,
+            commands: command_rx,
+            start,
+            channels: HashMap::new(),
+            monitor: Box::new(NodeMonitor::new()),
+            heartbeat,
+            sync: None,
+            syncs: sync_tx,
+            tpdos: HashMap::new(),
+            texts: HashMap::new(),
+            events: events.clone(),
+            frames: frames.clone(),
+            out: Vec::new(),
+            sends: Vec::new(),
+        };
+        tokio::spawn(task.run());
+        Self { commands, events, frames, syncs, link: link_state, sdo: config.sdo }
+    }
+
+    /// A handle on node `id` for SDO transfers and NMT, with the bus's default SDO options.
+    pub fn node(&self, id: u8) -> Result<Node, Error> {
+        let id = NodeId::new(id).ok_or(Error::NodeId(id))?;
+        Ok(Node::new(self.clone(), id, self.sdo))
+    }
+
+    /// Subscribes to the bus's [`Event`]s from now on.
+    pub fn events(&self) -> broadcast::Receiver<Event> {
+        self.events.subscribe()
+    }
+
+    /// Subscribes to every frame received from now on (the master's own are not included).
+    pub fn frames(&self) -> broadcast::Receiver<CanFrame> {
+        self.frames.subscribe()
+    }
+
+    /// The link's state (a socketcand link goes down and comes back; see
+    /// [`od_bus::tokio::LinkState`]).
+    pub fn link(&self) -> watch::Receiver<LinkState> {
+        self.link.clone()
+    }
+
+    /// The number of SYNCs sent so far; `changed().await` on it waits for the next one.
+    pub fn syncs(&self) -> watch::Receiver<u64> {
+        self.syncs.clone()
+    }
+
+    async fn call<T>(&self, make: impl FnOnce(oneshot::Sender<T>) -> Command) -> Result<T, Error> {
+        let (reply, answer) = oneshot::channel();
+        self.commands.send(make(reply)).await.map_err(|_| Error::Closed)?;
+        answer.await.map_err(|_| Error::Closed)
+    }
+
+    pub(crate) async fn sdo(
+        &self,
+        node: NodeId,
+        index: u16,
+        sub: u8,
+        op: Op,
+        options: SdoOptions,
+    ) -> Result<Vec<u8>, Error> {
+        self.call(|reply| Command::Sdo(SdoRequest { node, index, sub, op, options, reply })).await?
+    }
+
+    /// Puts a frame on the bus as it is.
+    pub async fn send(&self, frame: CanFrame) -> Result<(), Error> {
+        self.call(|reply| Command::Send(frame, reply)).await?
+    }
+
+    /// Sends an NMT command to one node or to all.
+    pub async fn nmt(&self, command: NmtCommand, target: Target) -> Result<(), Error> {
+        self.send(CanFrame::from(nmt::command(command, target))).await
+    }
+
+    /// Watches `node` by heartbeat or node guarding: [`Event::Node`] reports it lost
+    /// ([`NodeEvent::Lost`](crate::NodeEvent::Lost)) and recovered, and, with `boot_timeout`, never heard from
+    /// ([`NodeEvent::NeverSeen`](crate::NodeEvent::NeverSeen)). Every node that sends a heartbeat is watched anyway without
+    /// timeout, for its boot-up and state events.
+    pub async fn watch(&self, node: u8, watch: Watch, boot_timeout: Option<Duration>) -> Result<(), Error> {
+        let node = NodeId::new(node).ok_or(Error::NodeId(node))?;
+        self.call(|reply| Command::Watch { node, watch: Some(watch), boot_timeout, reply }).await
+    }
+
+    /// Stops watching `node` for losses (its events are still reported).
+    pub async fn unwatch(&self, node: u8) -> Result<(), Error> {
+        let node = NodeId::new(node).ok_or(Error::NodeId(node))?;
+        self.call(|reply| Command::Watch { node, watch: None, boot_timeout: None, reply }).await
+    }
+
+    /// Starts sending SYNC on 080h every `period`, with a counter running 1..=`counter` when
+    /// `counter` is 2..=240 (1019h), without one when it is 0. The first SYNC goes out at once.
+    pub async fn start_sync(&self, period: Duration, counter: u8) -> Result<(), Error> {
+        self.call(|reply| Command::Sync { period: Some(period), counter, reply }).await?
+    }
+
+    /// Stops sending SYNC.
+    pub async fn stop_sync(&self) -> Result<(), Error> {
+        self.call(|reply| Command::Sync { period: None, counter: 0, reply }).await?
+    }
+
+    /// Sends an RPDO: `values` packed by `mapping` on `cob_id`.
+    pub async fn send_pdo(&self, cob_id: u16, mapping: &PdoMapping, values: &[PdoValue]) -> Result<(), Error> {
+        let (data, len) = mapping.encode(values).map_err(|error| Error::Pdo { cob_id, error })?;
+        let frame = CanFrame::standard(u32::from(cob_id), &data[..len]).map_err(od_bus::TransportError::from)?;
+        self.send(frame).await
+    }
+
+    /// Receives the TPDOs on `cob_id` from now on, decoded by `mapping`. Up to `capacity` wait
+    /// for the receiver; past that, new ones are dropped until it reads.
+    pub async fn tpdo(&self, cob_id: u16, mapping: PdoMapping, capacity: usize) -> Result<mpsc::Receiver<Tpdo>, Error> {
+        let (to, from) = mpsc::channel(capacity.max(1));
+        self.commands.send(Command::Tpdo { cob_id, mapping, to }).await.map_err(|_| Error::Closed)?;
+        Ok(from)
+    }
+
+    /// Gives the bus the error texts of `node`'s EMCY codes (from its sidecar:
+    /// [`EmcyTexts::from_sidecar`]): its [`Event::Emergency`] events carry them.
+    pub async fn set_emcy_texts(&self, node: u8, texts: EmcyTexts) -> Result<(), Error> {
+        let node = NodeId::new(node).ok_or(Error::NodeId(node))?;
+        self.commands.send(Command::EmcyTexts { node, texts: Arc::new(texts) }).await.map_err(|_| Error::Closed)
+    }
+}
+
+pub(crate) fn micros(d: Duration) -> Micros {
+    u64::try_from(d.as_micros()).unwrap_or(u64::MAX)
+}
+
+/// One node's SDO channel: the protocol machine, the transfer running and those waiting.
+struct Channel {
+    client: SdoClient<Vec<u8>>,
+    active: Option<Active>,
+    queue: VecDeque<SdoRequest>,
+}
+
+/// The running request: what to start again on a retry.
+struct Active {
+    request: SdoRequest,
+    attempts: u8,
+}
+
+struct Task {
+    tx: BusSender,
+    rx: BusReceiver,
+    link: watch::Receiver<LinkState>,
+    link_open: bool,
+    commands: mpsc::Receiver<Command>,
+    start: Instant,
+    channels: HashMap<u8, Channel>,
+    monitor: Box<NodeMonitor<127>>,
+    heartbeat: Option<HeartbeatProducer>,
+    sync: Option<SyncProducer>,
+    syncs: watch::Sender<u64>,
+    tpdos: HashMap<u16, Vec<(PdoMapping, mpsc::Sender<Tpdo>)>>,
+    texts: HashMap<u8, Arc<EmcyTexts>>,
+    events: broadcast::Sender<Event>,
+    frames: broadcast::Sender<CanFrame>,
+    out: Vec<Frame>,
+    sends: Vec<(CanFrame, oneshot::Sender<Result<(), Error>>)>,
+}
+
+/// Whether a failed transfer may be started again: the answer got lost or garbled on the way
+/// (timeout, toggle bit, sequence, CRC, command specifier: the 0503xxxxh and 0504xxxxh codes,
+/// from either side), not refused by the server for what it is, nor too large for the buffer.
+fn retriable(error: SdoError) -> bool {
+    let code = error.code();
+    matches!(code.0 >> 16, 0x0503 | 0x0504) && code != AbortCode::OUT_OF_MEMORY
+}
+
+impl Task {
+    fn now(&self) -> Micros {
+        micros(self.start.elapsed())
+    }
+
+    async fn run(mut self) {
+        loop {
+            let now = self.now();
+            self.poll(now);
+            self.flush().await;
+            let wake = self.deadline().map(|d| self.start + Duration::from_micros(d));
+            tokio::select! {
+                command = self.commands.recv() => match command {
+                    Some(command) => self.command(command),
+                    None => return,
+                },
+                frame = self.rx.recv() => match frame {
+                    Ok(frame) => self.frame(frame),
+                    Err(_) => {
+                        self.close();
+                        return;
+                    }
+                },
+                changed = self.link.changed(), if self.link_open => match changed {
+                    Ok(()) => {
+                        let state = self.link.borrow_and_update().clone();
+                        let _ = self.events.send(Event::Link(state));
+                    }
+                    // A bus whose link never changes (memory, SocketCAN).
+                    Err(_) => self.link_open = false,
+                },
+                () = sleep_until(wake) => {}
+            }
+        }
+    }
+
+    /// Ends every transfer with [`Error::Closed`].
+    fn close(&mut self) {
+        let _ = self.events.send(Event::Link(LinkState::Closed));
+        for (_, channel) in self.channels.drain() {
+            if let Some(active) = channel.active {
+                let _ = active.request.reply.send(Err(Error::Closed));
+            }
+            for request in channel.queue {
+                let _ = request.reply.send(Err(Error::Closed));
+            }
+        }
+    }
+
+    fn deadline(&self) -> Option<Micros> {
+        let sdo = self.channels.values().filter_map(|c| c.client.deadline());
+        let others = [
+            self.monitor.deadline(),
+            self.heartbeat.as_ref().and_then(HeartbeatProducer::deadline),
+            self.sync.as_ref().and_then(SyncProducer::deadline),
+        ];
+        sdo.chain(others.into_iter().flatten()).min()
+    }
+
+    fn poll(&mut self, now: Micros) {
+        let out = &mut self.out;
+        let mut finished = Vec::new();
+        for channel in self.channels.values_mut() {
+            if let Some(done) = channel.client.poll(now, &mut |f| out.push(f)) {
+                finished.push(done);
+            }
+        }
+        for done in finished {
+            self.finish(done, now);
+        }
+        let out = &mut self.out;
+        let events = &self.events;
+        self.monitor.poll(
+            now,
+            |f| out.push(f),
+            |e| {
+                let _ = events.send(Event::Node(e));
+            },
+        );
+        if let Some(hb) = &mut self.heartbeat {
+            hb.poll(now, |f| out.push(f));
+        }
+        if let Some(sync) = &mut self.sync {
+            let mut sent = 0;
+            sync.poll(now, |f| {
+                out.push(f);
+                sent += 1;
+            });
+            if sent > 0 {
+                self.syncs.send_modify(|n| *n += sent);
+            }
+        }
+    }
+
+    /// Sends what the machines produced, then the frames callers asked for (each told how it
+    /// went). A machine's frame that cannot be sent (a socketcand link that is down) is lost
+    /// like a frame lost on the wire: the SDO timeout and retries deal with it.
+    async fn flush(&mut self) {
+        for frame in std::mem::take(&mut self.out) {
+            let _ = self.tx.send(CanFrame::from(frame)).await;
+        }
+        for (frame, reply) in std::mem::take(&mut self.sends) {
+            let _ = reply.send(self.tx.send(frame).await.map_err(Error::from));
+        }
+    }
+
+    fn command(&mut self, command: Command) {
+        let now = self.now();
+        match command {
+            Command::Sdo(request) => {
+                let node = request.node.get();
+                let channel = self.channels.entry(node).or_insert_with(|| Channel {
+                    client: SdoClient::new(request.node),
+                    active: None,
+                    queue: VecDeque::new(),
+                });
+                channel.queue.push_back(request);
+                self.next(node, now);
+            }
+            Command::Send(frame, reply) => self.sends.push((frame, reply)),
+            Command::Watch { node, watch, boot_timeout, reply } => {
+                let watch = watch.unwrap_or(Watch::Heartbeat { timeout: 0 });
+                // The table has a slot for each of the 127 node ids: it cannot be full.
+                let _ = self.monitor.watch(node, watch, boot_timeout.map(micros), now);
+                let _ = reply.send(());
+            }
+            Command::Sync { period, counter, reply } => {
+                let result = match period {
+                    None => {
+                        self.sync = None;
+                        Ok(())
+                    }
+                    Some(period) => match SyncProducer::new(micros(period).max(1)).with_counter(counter) {
+                        Ok(mut sync) => {
+                            sync.start(now);
+                            self.sync = Some(sync);
+                            Ok(())
+                        }
+                        Err(_) => Err(Error::Transport(od_bus::TransportError::Protocol(format!(
+                            "SYNC counter overflow {counter} is not 0 or 2..=240 (1019h)"
+                        )))),
+                    },
+                };
+                let _ = reply.send(result);
+            }
+            Command::Tpdo { cob_id, mapping, to } => self.tpdos.entry(cob_id).or_default().push((mapping, to)),
+            Command::EmcyTexts { node, texts } => {
+                self.texts.insert(node.get(), texts);
+            }
+        }
+    }
+
+    /// Starts the next waiting transfer of `node` if its channel is free.
+    fn next(&mut self, node: u8, now: Micros) {
+        let Some(channel) = self.channels.get_mut(&node) else { return };
+        while channel.active.is_none() {
+            let Some(request) = channel.queue.pop_front() else { return };
+            if request.reply.is_closed() {
+                // The caller stopped waiting before the transfer began.
+                continue;
+            }
+            match start(&mut channel.client, &request, now) {
+                Ok(()) => channel.active = Some(Active { request, attempts: 1 }),
+                Err(error) => {
+                    let _ = request.reply.send(Err(error));
+                }
+            }
+        }
+    }
+
+    /// A transfer ended: answer its caller, or start it again when the rules allow.
+    fn finish(&mut self, done: Done<Vec<u8>>, now: Micros) {
+        let node = done.node;
+        let Some(channel) = self.channels.get_mut(&node) else { return };
+        let Some(mut active) = channel.active.take() else { return };
+        match done.result {
+            Ok(n) => {
+                let mut buf = done.buf;
+                buf.truncate(n);
+                if matches!(active.request.op, Op::Download { .. }) {
+                    buf.clear();
+                }
+                let _ = active.request.reply.send(Ok(buf));
+            }
+            Err(error) => {
+                let may_repeat = match &active.request.op {
+                    Op::Upload(_) => true,
+                    Op::Download { idempotent, .. } => *idempotent,
+                };
+                let retry = retriable(error)
+                    && may_repeat
+                    && active.attempts <= active.request.options.retries
+                    && !active.request.reply.is_closed();
+                if retry && start(&mut channel.client, &active.request, now).is_ok() {
+                    active.attempts += 1;
+                    channel.active = Some(active);
+                    return;
+                }
+                let error = TransferError { node, direction: done.direction, index: done.index, sub: done.sub, error };
+                let _ = active.request.reply.send(Err(Error::Sdo { error, attempts: active.attempts }));
+            }
+        }
+        self.next(node, now);
+    }
+
+    fn frame(&mut self, can: CanFrame) {
+        if self.frames.receiver_count() > 0 {
+            let _ = self.frames.send(can);
+        }
+        // Extended frames are no CANopen service's.
+        let Ok(frame) = Frame::try_from(can) else { return };
+        let now = self.now();
+        let id = frame.id();
+        if (0x581..=0x5FF).contains(&id)
+            && let Some(channel) = self.channels.get_mut(&((id - 0x580) as u8))
+            && let Some(done) = channel.client.on_frame(&frame, now)
+        {
+            self.finish(done, now);
+        }
+        if (0x701..=0x77F).contains(&id) && !frame.is_rtr() {
+            let node = NodeId::new((id - 0x700) as u8);
+            let mut event = self.monitor.on_frame(&frame, now);
+            if let Some(node) = node
+                && event.is_none()
+                && self.monitor.state(node).is_none()
+                && frame.len() == 1
+            {
+                // A node not watched yet: watch it without timeout, for its events.
+                let _ = self.monitor.watch(node, Watch::Heartbeat { timeout: 0 }, None, now);
+                event = self.monitor.on_frame(&frame, now);
+            }
+            if let Some(event) = event {
+                let _ = self.events.send(Event::Node(event));
+            }
+        }
+        if let Some(emcy) = Emergency::from_frame(&frame) {
+            let text = self.texts.get(&emcy.node).and_then(|t| t.text(&emcy)).map(str::to_owned);
+            let _ = self.events.send(Event::Emergency { emcy, text });
+        }
+        if let Some(subscribers) = self.tpdos.get_mut(&id) {
+            let at = Instant::now();
+            subscribers.retain(|(mapping, to)| {
+                if to.is_closed() {
+                    return false;
+                }
+                let mut values = vec![PdoValue::Unsigned(0); mapping.fields().len()];
+                match mapping.decode(frame.data(), &mut values) {
+                    Ok(_) => {
+                        let _ = to.try_send(Tpdo { cob_id: id, at, values });
+                    }
+                    Err(error) => {
+                        let _ = self.events.send(Event::PdoError { cob_id: id, error });
+                    }
+                }
+                true
+            });
+        }
+    }
+}
+
+/// Starts `request` on `client`, with the request's timeout.
+fn start(client: &mut SdoClient<Vec<u8>>, request: &SdoRequest, now: Micros) -> Result<(), Error> {
+    client.set_timeout(micros(request.options.timeout));
+    let (node, index, sub) = (request.node.get(), request.index, request.sub);
+    let started = match &request.op {
+        Op::Upload(capacity) => client.upload(index, sub, vec![0; *capacity], request.options.mode, now),
+        Op::Download { data, .. } => client.download(index, sub, data.clone(), request.options.mode, now),
+    };
+    started.map_err(|rejected| {
+        let len = rejected.buf.len();
+        Error::TooLong { node, index, sub, len }
+    })
+}
+
+async fn sleep_until(wake: Option<Instant>) {
+    match wake {
+        Some(at) => tokio::time::sleep_until(at).await,
+        None => std::future::pending().await,
+    }
+}

@@ -1,0 +1,183 @@
+//! The CiA 402 axis on each simulated drive: enable, homing, profile position and velocity,
+//! cyclic synchronous position, recovery from a fault, errors that name the drive.
+
+use std::time::Duration;
+
+use drive::node::DeviceKind;
+use od_bus::tokio::Bus as Link;
+use od_master::{Axis, AxisErrorKind, Bus, Config, Error, Homing, Move, NodeId, State};
+
+use crate::harness::{net, net_with, pass};
+
+/// Each drive's homing method that homes where it stands, a target and a speed in its
+/// default units, and the configuration its manual's examples start with.
+async fn prepare(kind: DeviceKind, axis: &Axis) -> (i8, i32, u32) {
+    match kind {
+        // 0.01° units: 360° at 60 rpm.
+        DeviceKind::Drvi => (37, 36_000, 6_000),
+        // The DRCS's stroke is 0..=1000 from the home point.
+        DeviceKind::Drcs => (37, 500, 50),
+        // 10 000 counts a turn (the AKD manual's examples): half a turn at 1 turn/s, short of
+        // the preset machine's limit switch.
+        DeviceKind::Akd => {
+            axis.node().write_idempotent(0x6092, 1, 10_000u32).await.unwrap();
+            (35, 5_000, 10_000)
+        }
+    }
+}
+
+/// Each drive homes and moves; the position the move reports is 6064h, at the target.
+#[tokio::test(start_paused = true)]
+async fn each_drive_homes_and_moves_to_its_target() {
+    let n = net(&[(DeviceKind::Drvi, 2), (DeviceKind::Drcs, 3), (DeviceKind::Akd, 4)]);
+    pass(Duration::from_millis(5)).await;
+    for (kind, id) in [(DeviceKind::Drvi, 2), (DeviceKind::Drcs, 3), (DeviceKind::Akd, 4)] {
+        let axis = Axis::new(n.bus.node(id).unwrap());
+        let (method, target, velocity) = prepare(kind, &axis).await;
+        let home = axis.home(&Homing::method(method)).await.unwrap_or_else(|e| panic!("{kind:?}: {e}"));
+        assert_eq!(home, 0, "{kind:?}");
+        assert_eq!(axis.state().await.unwrap(), Some(State::OperationEnabled));
+        let m = Move {
+            velocity: Some(velocity),
+            acceleration: Some(velocity),
+            deceleration: Some(velocity),
+            ..Move::default()
+        };
+        let at = axis.move_to(target, &m).await.unwrap_or_else(|e| panic!("{kind:?}: {e}"));
+        assert_eq!(at, target, "{kind:?}");
+        assert_eq!(axis.node().read::<i32>(0x6064, 0).await.unwrap(), at, "{kind:?}");
+        // Relative, back by half.
+        let back = axis.move_to(-target / 2, &Move { relative: true, ..m }).await.unwrap();
+        assert_eq!(back, target - target / 2, "{kind:?}");
+    }
+}
+
+/// Change set immediately: a second set-point replaces the running one on the AKD, which
+/// then stops at the second target.
+#[tokio::test(start_paused = true)]
+async fn change_set_immediately_replaces_the_running_set_point() {
+    let n = net(&[(DeviceKind::Akd, 4)]);
+    pass(Duration::from_millis(5)).await;
+    let axis = Axis::new(n.bus.node(4).unwrap());
+    let (method, _, v) = prepare(DeviceKind::Akd, &axis).await;
+    axis.home(&Homing::method(method)).await.unwrap();
+    let m = Move { velocity: Some(v), acceleration: Some(v), deceleration: Some(v), ..Move::default() };
+    axis.set_point(100_000, &m).await.unwrap();
+    pass(Duration::from_millis(500)).await;
+    let at = axis.move_to(5_000, &Move { immediate: true, ..m }).await.unwrap();
+    assert_eq!(at, 5_000);
+}
+
+/// Profile velocity: the drive runs at the speed asked for (60FFh in position units per
+/// second here; the AKD's 606Ch has a scale of its own).
+#[tokio::test(start_paused = true)]
+async fn profile_velocity_reaches_its_speed() {
+    let n = net(&[(DeviceKind::Akd, 4)]);
+    pass(Duration::from_millis(5)).await;
+    let axis = Axis::new(n.bus.node(4).unwrap());
+    prepare(DeviceKind::Akd, &axis).await;
+    axis.run_velocity(5_000, Some(50_000), Some(50_000)).await.unwrap();
+    pass(Duration::from_millis(500)).await;
+    let v1 = axis.velocity().await.unwrap();
+    let p1 = axis.position().await.unwrap();
+    pass(Duration::from_secs(1)).await;
+    let p2 = axis.position().await.unwrap();
+    assert_eq!(axis.velocity().await.unwrap(), v1, "at a steady speed");
+    // 5 000 counts/s; the second read comes a few SDO round trips after the second.
+    assert!((0..=15).contains(&(p2 - p1 - 5_000)), "moved {} in 1 s", p2 - p1);
+}
+
+/// Cyclic synchronous position on the AKD: an RPDO mapped at run time carries one set-point
+/// per 1 ms SYNC, and the drive follows the ramp to its end.
+#[tokio::test(start_paused = true)]
+async fn cyclic_synchronous_position_follows_a_set_point_per_sync() {
+    let n = net(&[(DeviceKind::Akd, 4)]);
+    pass(Duration::from_millis(5)).await;
+    let axis = Axis::new(n.bus.node(4).unwrap());
+    prepare(DeviceKind::Akd, &axis).await;
+    axis.home(&Homing::method(35)).await.unwrap();
+    n.bus.start_sync(Duration::from_millis(1), 0).await.unwrap();
+    let mut csp = axis.cyclic_position(4, 0x504).await.unwrap();
+    let start = axis.position().await.unwrap();
+    let mut last = 0;
+    for k in 1..=1000 {
+        let n = csp.send(start + 5 * k).await.unwrap();
+        assert!(n > last, "one set-point per SYNC");
+        last = n;
+    }
+    pass(Duration::from_millis(20)).await;
+    assert_eq!(axis.position().await.unwrap(), start + 5_000);
+    assert_eq!(axis.state().await.unwrap(), Some(State::OperationEnabled));
+}
+
+/// The master's heartbeat stops when its program does (here: every handle dropped); the AKD,
+/// consuming it, reacts with EMCY 8130h. A new master takes it back to Operation enabled,
+/// through a fault reset if it went to Fault.
+#[tokio::test(start_paused = true)]
+async fn a_lost_master_heartbeat_stops_the_drive_and_enable_recovers_it() {
+    let config =
+        Config { heartbeat: Some((NodeId::new(127).unwrap(), Duration::from_millis(20))), ..Config::default() };
+    let n = net_with(&[(DeviceKind::Akd, 4)], config);
+    pass(Duration::from_millis(5)).await;
+    {
+        let axis = Axis::new(n.bus.node(4).unwrap());
+        axis.node().write_idempotent(0x1016, 1, (127u32 << 16) | 100).await.unwrap();
+        axis.node().start().await.unwrap();
+        axis.enable().await.unwrap();
+        pass(Duration::from_millis(100)).await;
+        assert_eq!(axis.state().await.unwrap(), Some(State::OperationEnabled), "heartbeats arrive");
+    }
+    let sim = n.sim;
+    drop(n.bus);
+    pass(Duration::from_millis(500)).await;
+    let bus = Bus::start(Link::attach(sim.lock().unwrap().bus()), Config::default());
+    let axis = Axis::new(bus.node(4).unwrap());
+    let stopped = axis.state().await.unwrap();
+    assert!(matches!(stopped, Some(State::Fault | State::SwitchOnDisabled | State::QuickStopActive)), "{stopped:?}");
+    // The error history's newest entry: life guard or heartbeat error.
+    assert_eq!(axis.node().read::<u32>(0x1003, 1).await.unwrap() & 0xFFFF, 0x8130);
+    axis.enable().await.unwrap();
+    assert_eq!(axis.state().await.unwrap(), Some(State::OperationEnabled));
+}
+
+/// Errors name the drive, its state and the object: a set-point the DRVI refuses (no homing
+/// yet) is not acknowledged.
+#[tokio::test(start_paused = true)]
+async fn an_axis_error_names_the_drive_its_state_and_the_object() {
+    let n = net(&[(DeviceKind::Drvi, 2)]);
+    pass(Duration::from_millis(5)).await;
+    let axis = Axis::new(n.bus.node(2).unwrap());
+    let e = axis.set_point(1_000, &Move { timeout: Duration::from_millis(200), ..Move::default() }).await.unwrap_err();
+    let Error::Axis(a) = &e else { panic!("{e:?}") };
+    assert_eq!((a.node, a.state, a.index, a.sub), (2, Some(State::OperationEnabled), 0x607A, 0));
+    assert!(matches!(a.kind, AxisErrorKind::SetPoint { timeout_ms: 200 }), "{e}");
+    let text = e.to_string();
+    assert!(text.starts_with("drive 2 (in OperationEnabled, statusword "), "{text}");
+    assert!(text.ends_with("607Ah sub 0: set-point not acknowledged (statusword bit 12) within 200 ms"), "{text}");
+    // A node that does not answer: the SDO error, inside the axis error, names the object.
+    let ghost = Axis::new(n.bus.node(9).unwrap().with_timeout(Duration::from_millis(50)).with_retries(0));
+    let e = ghost.enable().await.unwrap_err();
+    assert!(e.to_string().contains("drive 9 (state unknown), 6041h sub 0: node 9, upload of 6041h sub 0: aborted by the client: 0x05040000 (SDO protocol timed out)"), "{e}");
+}
+
+/// A homing the DRCS cannot run (its homing speeds are 0 out of the box) is a homing error
+/// (bit 13) and a fault, 8613h; the error says so, and `enable` waits for the fault reaction,
+/// resets the fault and brings the drive back.
+#[tokio::test(start_paused = true)]
+async fn a_homing_that_faults_is_reported_and_enable_resets_the_fault() {
+    let n = net(&[(DeviceKind::Drcs, 3)]);
+    pass(Duration::from_millis(5)).await;
+    let axis = Axis::new(n.bus.node(3).unwrap());
+    let e = axis.home(&Homing::method(17)).await.unwrap_err();
+    let Error::Axis(a) = &e else { panic!("{e:?}") };
+    assert!(matches!(a.kind, AxisErrorKind::Bit13("homing error")), "{e}");
+    assert_eq!((a.node, a.state, a.index), (3, Some(State::FaultReactionActive), 0x6098));
+    assert_eq!(
+        e.to_string(),
+        "drive 3 (in FaultReactionActive, statusword 261Fh), 6098h sub 0: statusword bit 13 set: homing error"
+    );
+    assert_eq!(axis.node().read::<u16>(0x603F, 0).await.unwrap(), 0x8613);
+    axis.enable().await.unwrap();
+    assert_eq!(axis.state().await.unwrap(), Some(State::OperationEnabled));
+    assert_eq!(axis.home(&Homing::method(37)).await.unwrap(), 0);
+}

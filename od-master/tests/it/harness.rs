@@ -1,0 +1,60 @@
+//! Simulated drives on the in-memory bus, moved in step with tokio's (paused) clock.
+
+use std::sync::{Arc, Mutex, Weak};
+use std::time::Duration;
+
+use drive::drives::DeviceApps;
+use drive::node::{DeviceKind, NodeConfig, Sim};
+use od_master::{Bus, Config};
+use tokio::time::Instant;
+
+/// How far the simulation moves between two looks at the bus: the latency of a simulated
+/// node's answer.
+pub const STEP: Duration = Duration::from_micros(200);
+
+/// The simulation and the master on its bus.
+pub struct Net {
+    pub bus: Bus,
+    pub sim: Arc<Mutex<Sim>>,
+}
+
+pub fn node(kind: DeviceKind, id: u8) -> Box<dyn drive::node::AnyNode> {
+    kind.build(&NodeConfig { node_id: Some(id), ..Default::default() }, &DeviceApps::new()).expect("a simulated node")
+}
+
+/// `nodes` on a fresh simulation with a master on its bus; to be called in a runtime with a
+/// paused clock (`#[tokio::test(start_paused = true)]`). The nodes boot at the first step.
+pub fn net(nodes: &[(DeviceKind, u8)]) -> Net {
+    net_with(nodes, Config::default())
+}
+
+pub fn net_with(nodes: &[(DeviceKind, u8)], config: Config) -> Net {
+    let mut sim = Sim::new();
+    for &(kind, id) in nodes {
+        sim.add(node(kind, id));
+    }
+    let bus = Bus::start(od_bus::tokio::Bus::attach(sim.bus()), config);
+    let sim = Arc::new(Mutex::new(sim));
+    tokio::spawn(clock(Arc::downgrade(&sim)));
+    Net { bus, sim }
+}
+
+/// Moves the simulation to tokio's time every [`STEP`], until the simulation is dropped.
+async fn clock(sim: Weak<Mutex<Sim>>) {
+    let start = Instant::now();
+    loop {
+        {
+            let Some(sim) = sim.upgrade() else { return };
+            let mut sim = sim.lock().unwrap();
+            let t = u64::try_from(start.elapsed().as_micros()).unwrap();
+            let now = sim.now();
+            sim.advance(t.saturating_sub(now));
+        }
+        tokio::time::sleep(STEP).await;
+    }
+}
+
+/// Lets `d` of virtual time pass.
+pub async fn pass(d: Duration) {
+    tokio::time::sleep(d).await;
+}

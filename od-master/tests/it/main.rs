@@ -1,0 +1,9 @@
+//! od-master against the simulated drives (DRVI, DRCS, AKD) on the in-memory bus in virtual
+//! time, against hand-written faulty SDO servers, and over the socketcand hub on TCP.
+
+mod axis;
+mod events;
+mod faults;
+mod harness;
+mod hub;
+mod sdo;
