@@ -226,7 +226,7 @@ fn sdo(
         (false, 1) => "download segment ok".to_owned(),
         (false, 5) => format!("block download{at} answer"),
         (false, 6) => format!("block upload{at} answer"),
-        _ => format!("{}", hex(data)),
+        _ => hex(data),
     };
     let mut extra = json!({ "summary": what });
     if let (Some((i, s)), Json::Object(m)) = (obj.filter(|_| matches!(cs, 1 | 2 | 4 | 5 | 6)), &mut extra) {
