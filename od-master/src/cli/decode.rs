@@ -103,8 +103,8 @@ pub fn decode(id: u32, rtr: bool, data: &[u8], devices: &BTreeMap<u8, Device>) -
     };
     // PDOs first: a device may map one anywhere.
     for (node, dev) in devices {
-        if let Some(pdo) = dev.pdos(*node).into_iter().find(|p| p.cob_id == id) {
-            return pdo_fields(*node, dev, &pdo, data, &mk);
+        if let Some(pdo) = dev.pdos(*node).iter().find(|p| p.cob_id == id) {
+            return pdo_fields(*node, dev, pdo, data, &mk);
         }
     }
     let node = (id & 0x7F) as u8;
@@ -311,12 +311,34 @@ mod tests {
         assert_eq!(abort.json["index"], 0x2000);
     }
 
+    fn drvi_on(node: u8) -> BTreeMap<u8, Device> {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../devices/camozzi-drvi.eds");
+        BTreeMap::from([(node, Device::load(std::path::Path::new(path)).unwrap())])
+    }
+
+    #[test]
+    fn through_a_device_pdos_have_named_fields_and_emcy_the_sidecar_text() {
+        let devices = drvi_on(5);
+        // TPDO1 of the DRVI maps the statusword (its EDS default), on 180h + node.
+        let pdo = decode(0x185, false, &[0x37, 0x02], &devices);
+        assert_eq!(pdo.kind, "pdo");
+        assert_eq!(pdo.text, "TPDO1 node 5: statusword=567");
+        assert_eq!(pdo.json["fields"]["statusword"], 0x237);
+        let emcy = decode(0x085, false, &[0x10, 0x23, 0x03, 0, 0, 0, 0, 0], &devices);
+        assert_eq!(emcy.json["text"], "Over current error");
+        assert_eq!(emcy.json["class"], "current, device output side");
+        // Another node's frames are not read through this device.
+        assert_eq!(decode(0x086, false, &[0x10, 0x23, 0x03, 0, 0, 0, 0, 0], &devices).json["text"], Json::Null);
+    }
+
     #[test]
     fn every_frame_decodes_without_panicking() {
+        let devices = drvi_on(5);
         for id in (0..0x800u32).step_by(3) {
             for len in 0..=8usize {
                 let data: Vec<u8> = (0..len as u8).map(|b| b.wrapping_mul(37).wrapping_add(id as u8)).collect();
                 let _ = decode(id, len == 0, &data, &BTreeMap::new());
+                let _ = decode(id, len == 0, &data, &devices);
             }
         }
     }

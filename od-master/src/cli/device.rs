@@ -1,7 +1,10 @@
 //! A device description given with `--eds`: the EDS/DCF, the names its generated code gives its
 //! entries, its default PDO mappings, and the sidecar TOML next to it (same stem), if any.
 
+use std::cell::RefCell;
+use std::collections::BTreeMap;
 use std::path::Path;
+use std::rc::Rc;
 
 use eds::{Model, Value};
 use od_sidecar::Sidecar;
@@ -38,6 +41,8 @@ pub struct Device {
     pub names: Names,
     /// The sidecar next to the EDS.
     pub sidecar: Option<Sidecar>,
+    /// [`pdos`](Self::pdos) by node, worked out once.
+    pdos: RefCell<BTreeMap<u8, Rc<[Pdo]>>>,
 }
 
 impl Device {
@@ -57,7 +62,7 @@ impl Device {
         } else {
             None
         };
-        Ok(Self { model, names, sidecar })
+        Ok(Self { model, names, sidecar, pdos: RefCell::default() })
     }
 
     fn value(&self, index: u16, sub: u8, node: u8) -> Option<i128> {
@@ -66,7 +71,11 @@ impl Device {
     }
 
     /// The PDOs the device has by default on node `node` (valid COB-IDs only).
-    pub fn pdos(&self, node: u8) -> Vec<Pdo> {
+    pub fn pdos(&self, node: u8) -> Rc<[Pdo]> {
+        Rc::clone(self.pdos.borrow_mut().entry(node).or_insert_with(|| self.find_pdos(node).into()))
+    }
+
+    fn find_pdos(&self, node: u8) -> Vec<Pdo> {
         let mut out = Vec::new();
         for (comm, map, kind) in [(0x1400u16, 0x1600u16, "RPDO"), (0x1800, 0x1A00, "TPDO")] {
             for n in 0..512u16 {
