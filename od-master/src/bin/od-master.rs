@@ -15,6 +15,7 @@ use std::time::Duration;
 
 use clap::{Parser, Subcommand};
 use od_master::{Axis, Bus, Config, Homing, Move, NmtCommand, SdoOptions};
+use od_sidecar::Dimension;
 use serde_json::json;
 
 use cli::decode::decode;
@@ -122,9 +123,10 @@ enum AxisCmd {
     },
     /// Profile position move to a target, waiting until it is reached.
     Move {
-        /// Target position (raw units).
+        /// Target position: raw units, or with the unit of the drive's sidecar (`90deg`,
+        /// `12.5mm`; needs --eds).
         #[arg(long, allow_hyphen_values = true)]
-        to: i32,
+        to: String,
         /// Relative to the current target.
         #[arg(long)]
         relative: bool,
@@ -141,9 +143,10 @@ enum AxisCmd {
     },
     /// Profile velocity (raw units); it keeps running.
     Velocity {
-        /// Target velocity (raw units).
+        /// Target velocity: raw units, or with the unit of the drive's sidecar (`60rpm`,
+        /// `10mm/s`; needs --eds).
         #[arg(allow_hyphen_values = true)]
-        value: i32,
+        value: String,
     },
 }
 
@@ -293,6 +296,7 @@ async fn run(args: Args) -> Result<(), Fail> {
         Cmd::Axis { node, action } => {
             let node = node_id(&node.to_string())?;
             let axis = Axis::new(bus.node(node).map_err(fail)?);
+            let device = devices.for_node(node);
             match action {
                 AxisCmd::Enable => axis.enable().await.map_err(fail)?,
                 AxisCmd::Home { method } => {
@@ -313,14 +317,37 @@ async fn run(args: Args) -> Result<(), Fail> {
                         timeout,
                         ..Move::default()
                     };
+                    let to = axis_value(&axis, device, &to, Dimension::Position).await?;
                     let pos = axis.move_to(to, &m).await.map_err(fail)?;
                     println!("position {pos}");
                 }
-                AxisCmd::Velocity { value } => axis.run_velocity(value, None, None).await.map_err(fail)?,
+                AxisCmd::Velocity { value } => {
+                    let value = axis_value(&axis, device, &value, Dimension::Velocity).await?;
+                    axis.run_velocity(value, None, None).await.map_err(fail)?
+                }
             }
         }
     }
     Ok(())
+}
+
+/// An axis value: raw units, or a number with the unit the drive's sidecar gives (read the
+/// device's unit configuration first).
+async fn axis_value(axis: &Axis, device: Option<&Device>, text: &str, dim: Dimension) -> Result<i32, Fail> {
+    let Some((number, unit)) = cli::units::split(text) else {
+        return text.trim().parse().map_err(|_| usage(format!("`{text}` is not a value (raw units, or e.g. 90deg)")));
+    };
+    let Some(sidecar) = device.and_then(|d| d.sidecar.as_ref()) else {
+        return Err(usage(format!("`{text}`: units need --eds with the device's sidecar (FILE.toml beside it)")));
+    };
+    let mut values = BTreeMap::new();
+    for o in cli::units::objects(sidecar) {
+        let bytes = axis.node().read_bytes(o.index, o.sub_or_zero()).await.map_err(|e| Fail(1, e.to_string()))?;
+        let mut le = [0u8; 8];
+        le[..bytes.len().min(8)].copy_from_slice(&bytes[..bytes.len().min(8)]);
+        values.insert(o, i64::from_le_bytes(le));
+    }
+    cli::units::to_raw(number, unit, dim, sidecar, &values).map_err(usage)
 }
 
 async fn scan(bus: &Bus, last: u8, json: bool, timeout: u64) -> Result<(), Fail> {

@@ -4,4 +4,5 @@
 pub mod decode;
 pub mod device;
 pub mod object;
+pub mod units;
 pub mod value;

@@ -232,6 +232,15 @@ fn cli_axis_homes_moves_and_runs_at_a_velocity() {
     assert_eq!(rig.cli(&["axis", "5", "velocity", "-100"]).code, 0);
     assert_eq!(rig.cli(&["read", "5", "60FFh"]).stdout, (-100i32 as u32).to_string() + "\n");
     assert_eq!(rig.cli(&["axis", "5", "enable"]).code, 0);
+    // In the unit of the DRVI's sidecar (only motor: hundredths of a degree, of an rpm).
+    let out = rig.cli(&["--eds", DRVI_EDS, "axis", "5", "move", "--to", "72deg", "--velocity", "36000"]);
+    assert_eq!((out.code, out.stdout.as_str()), (0, "position 7200\n"), "{}", out.stderr);
+    assert_eq!(rig.cli(&["--eds", DRVI_EDS, "axis", "5", "velocity", "-1.5rpm"]).code, 0);
+    assert_eq!(rig.cli(&["read", "5", "60FFh"]).stdout, (-150i32 as u32).to_string() + "\n");
+    let out = rig.cli(&["--eds", DRVI_EDS, "axis", "5", "move", "--to", "3mm"]);
+    assert_eq!(out.code, 2);
+    assert!(out.stderr.contains("in deg"), "{}", out.stderr);
+    assert_eq!(rig.cli(&["axis", "5", "move", "--to", "3deg"]).code, 2);
     // A homing method the DRVI does not have: the drive's abort, exit code 1.
     let out = rig.cli(&["axis", "5", "home", "--method", "35"]);
     assert_eq!(out.code, 1, "{}", out.stderr);
