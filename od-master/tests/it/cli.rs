@@ -136,6 +136,14 @@ fn cli_writes_by_the_eds_type_or_a_typed_value_and_checks_the_range() {
     assert_eq!(out.code, 2);
     assert!(out.stderr.contains("closest: statusword"), "{}", out.stderr);
     assert_eq!(rig.cli(&["read", "5", "6083h"]).stdout, "999\n");
+    // Each SDO mode, both ways, against the od-runtime server.
+    for (mode, value) in [("normal", 11u32), ("segmented", 22), ("block", 33)] {
+        let out = rig.cli(&["--sdo-mode", mode, "write", "5", "6083h", &format!("u32:{value}")]);
+        assert_eq!(out.code, 0, "{mode}: {}", out.stderr);
+        let out = rig.cli(&["--sdo-mode", mode, "read", "5", "6083h"]);
+        assert_eq!(out.stdout, format!("{value}\n"), "{mode}: {}", out.stderr);
+        assert_eq!(rig.cli(&["--sdo-mode", mode, "read", "5", "1008h"]).stdout, "DRVI\n", "{mode}");
+    }
 }
 
 #[test]
