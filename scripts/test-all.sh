@@ -44,7 +44,7 @@ cargo test --workspace --doc --locked --no-fail-fast
 # the .crate files it has just made (a local registry in target/package), as crates.io will.
 # The packages hold the sources, README and license files only: "ignoring test/benchmark ..."
 # is cargo saying so. --allow-dirty: a local run checks the working tree as it is.
-published=(-p od-sidecar -p od-runtime -p canopen-eds -p od-codegen -p od-macros)
+published=(-p od-sidecar -p od-runtime -p od-bus -p canopen-eds -p od-codegen -p od-macros)
 step "docs of the published crates (warnings denied)"
 RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --all-features --locked "${published[@]}"
 step "cargo package (the published crates, each built from its .crate)"

@@ -60,6 +60,11 @@
 
 #![deny(missing_docs)]
 
+/// The README's example, compiled and run as a doc test.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;
+
 mod addr;
 mod bus;
 mod client;

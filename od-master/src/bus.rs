@@ -429,9 +429,7 @@ impl Task {
                             self.sync = Some(sync);
                             Ok(())
                         }
-                        Err(_) => Err(Error::Transport(od_bus::TransportError::Protocol(format!(
-                            "SYNC counter overflow {counter} is not 0 or 2..=240 (1019h)"
-                        )))),
+                        Err(_) => Err(Error::SyncCounter(counter)),
                     },
                 };
                 let _ = reply.send(result);

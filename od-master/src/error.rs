@@ -57,6 +57,9 @@ pub enum Error {
         /// What was wrong.
         error: PdoError,
     },
+    /// A SYNC counter overflow value 1019h does not allow (1, 241..=255).
+    #[error("SYNC counter overflow {0} is not 0 or 2..=240 (1019h)")]
+    SyncCounter(u8),
     /// A node id outside 1..=127.
     #[error("node id {0} is outside 1..=127")]
     NodeId(u8),

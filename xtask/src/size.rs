@@ -14,7 +14,9 @@
 //!   machine code ([`stack`]), the deepest call path from the reset handler (each function's
 //!   prologue: pushes, `sub sp`, `vpush`; calls followed through `bl` and tail branches) plus
 //!   the worst exception handler and the 104 bytes the core stacks for an exception with FPU
-//!   state. Calls through registers cannot be followed; their count is printed (0 today).
+//!   state. A call through a register (`blx rN`) is followed when the register was last loaded
+//!   with a literal of the function's own pool (a direct call made through a register to save
+//!   code); other calls through registers cannot be followed; their count is printed (0 today).
 //!
 //! The ELF is read with the `object` crate, so no binutils for the target are needed.
 //! `--elf FILE` prints the same figures for any Cortex-M ELF, without building or a budget.
@@ -26,8 +28,8 @@ use object::{Object, ObjectSection, ObjectSymbol};
 
 /// The firmware's target.
 pub const TARGET: &str = "thumbv7em-none-eabihf";
-/// Flash budget of the DRCS firmware, bytes.
-pub const DRCS_FLASH: u64 = 32 * 1024;
+/// Flash budget of the DRCS firmware, bytes (24,764 measured; the goal is 20 KiB, issue #29).
+pub const DRCS_FLASH: u64 = 25 * 1024;
 /// RAM budget of the DRCS firmware (static data; the stack comes on top), bytes.
 pub const DRCS_RAM: u64 = 4 * 1024;
 /// Flash budget per dictionary entry of the AKD beyond the DRCS's, bytes.
@@ -256,7 +258,7 @@ mod tests {
             fmt_symbols: fmt.iter().map(|s| s.to_string()).collect(),
             stack: ram / 4,
         };
-        assert!(check(&[("drcs", 300, img(30_000, 4000, &[])), ("akd", 500, img(33_200, 4000, &[]))]).is_ok());
+        assert!(check(&[("drcs", 300, img(25_000, 4000, &[])), ("akd", 500, img(28_200, 4000, &[]))]).is_ok());
         let e = check(&[
             ("drcs", 300, img(40_000, 5000, &[])),
             ("akd", 500, img(50_000, 4000, &["_ZN4core3fmt5write17h0E"])),
@@ -355,6 +357,13 @@ pub mod stack {
         let mut f = Function { name: name.to_owned(), ..Function::default() };
         let half = |i: usize| code.get(i..i + 2).map(|b| u32::from(u16::from_le_bytes([b[0], b[1]])));
         let mut movw = [None::<u64>; 16];
+        // The literal each register was last loaded with (in address order), and a word of the
+        // function's code (its literal pool) by address.
+        let mut literal = [None::<u64>; 16];
+        let word = |at: u64| {
+            let off = usize::try_from(at.checked_sub(addr)?).ok()?;
+            code.get(off..off + 4).map(|b| u64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]])))
+        };
         let mut i = 0;
         while let Some(h1) = half(i) {
             let wide = matches!(h1 >> 11, 0b11101..=0b11111);
@@ -363,15 +372,30 @@ pub mod stack {
                     f.frame += 4 * u64::from((h1 & 0xFF).count_ones() + ((h1 >> 8) & 1));
                 } else if h1 & 0xFF80 == 0xB080 {
                     f.frame += u64::from(h1 & 0x7F) * 4;
+                } else if h1 & 0xF800 == 0x4800 {
+                    // LDR Rt, [PC, #imm8 * 4]: a literal, perhaps a function's address.
+                    let pc = (addr + i as u64 + 4) & !3;
+                    literal[((h1 >> 8) & 7) as usize] = word(pc + u64::from(h1 & 0xFF) * 4);
                 } else if h1 & 0xFF87 == 0x4780 {
-                    f.indirect += 1;
+                    // BLX Rm: followed when Rm was last loaded with a literal of this function
+                    // (a call made through a register to save code; opt-level "z" does that).
+                    match literal[((h1 >> 3) & 0xF) as usize] {
+                        Some(target) => f.calls.push(target & !1),
+                        None => f.indirect += 1,
+                    }
                 }
                 i += 2;
                 continue;
             }
             let Some(h2) = half(i + 2) else { break };
             let pc = addr + i as u64 + 4;
-            if h1 == 0xE92D {
+            if h1 & 0xFF7F == 0xF85F {
+                // LDR.W Rt, [PC, #+/-imm12].
+                let base = pc & !3;
+                let imm = u64::from(h2 & 0xFFF);
+                let at = if h1 & 0x80 != 0 { base + imm } else { base.wrapping_sub(imm) };
+                literal[(h2 >> 12) as usize] = word(at);
+            } else if h1 == 0xE92D {
                 f.frame += 4 * u64::from((h2 & 0x5FFF).count_ones());
             } else if h1 == 0xF84D && h2 & 0x0FFF == 0x0D04 {
                 f.frame += 4;
@@ -451,6 +475,17 @@ pub mod stack {
             let f = decode("f", 0x1000, &code);
             assert_eq!(f.frame, 20 + 16 + 12 + 8);
             assert_eq!(f.calls, [0x1000 + 12 + 4 + 0xF4]);
+            // ldr r4, [pc, #8]; ldr.w r8, [pc, #12]; blx r4; blx r8; blx r3; the literals.
+            let lit: Vec<u8> = [0x4C02u16, 0xF8DF, 0x800C, 0x47A0, 0x47C0, 0x4798]
+                .iter()
+                .flat_map(|h| h.to_le_bytes())
+                .chain(0x0800_2001u32.to_le_bytes())
+                .chain(0x0800_3001u32.to_le_bytes())
+                .collect();
+            let f = decode("lit", 0x2000, &lit);
+            // ldr at 0x2000: (0x2004 & !3) + 8 = 0x200C; ldr.w at 0x2002: (0x2006 & !3) + 12 = 0x2010.
+            assert_eq!(f.calls, [0x0800_2000, 0x0800_3000]);
+            assert_eq!(f.indirect, 1);
             // sub.w sp, sp, #4096 (i:imm3:imm8 = 0b0_100_10000000 → 0x80 ror 9) and subw sp, #1234.
             let big: Vec<u8> = [0xF5AD, 0x5D80, 0xF2AD, 0x4DD2].iter().flat_map(|h: &u16| h.to_le_bytes()).collect();
             assert_eq!(decode("g", 0, &big).frame, 4096 + 1234);

@@ -97,6 +97,9 @@ impl Firmware {
     /// [`Device::init_in_place`](od_runtime::Device::init_in_place): every value of the
     /// dictionary zero, which the device's first poll replaces with the defaults (its reset
     /// node). Nothing of it needs an image in flash, and nothing is built on the stack first.
+    /// Not inlined: its frame (the parts of the device it zeroes) is then not added to the main
+    /// loop's, on the deepest path of the stack.
+    #[inline(never)]
     pub fn init(place: &mut core::mem::MaybeUninit<Firmware>, node: NodeId) -> &mut Firmware {
         let p = place.as_mut_ptr();
         // SAFETY: the three fields of `*p` are written once each (the device in place), through

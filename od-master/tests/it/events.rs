@@ -141,7 +141,10 @@ async fn sync_goes_out_every_period_with_its_counter() {
         ["080#01", "080#02", "080#03", "080#01", "080#02", "080#03", "080#01", "080#02", "080#03", "080#01"]
     );
     assert_eq!(*syncs.borrow(), 10);
-    assert!(n.bus.start_sync(Duration::from_millis(10), 1).await.is_err(), "1019h = 1 is reserved");
+    assert!(
+        matches!(n.bus.start_sync(Duration::from_millis(10), 1).await, Err(od_master::Error::SyncCounter(1))),
+        "1019h = 1 is reserved"
+    );
 }
 
 /// A TPDO mapped at run time (statusword and position actual value, on every SYNC) arrives

@@ -32,6 +32,21 @@ static NODE_ID: u8 = 5;
 /// by `Firmware::init` (no image of it in flash, no copy through the stack).
 static mut FIRMWARE: MaybeUninit<Firmware> = MaybeUninit::uninit();
 
+/// Interrupts of the STM32F405 (reference manual RM0090, table 61).
+const IRQS: usize = 82;
+
+unsafe extern "C" {
+    /// cortex-m-rt's handler of every exception and interrupt without one of its own.
+    fn DefaultHandler();
+}
+
+/// The interrupt part of the vector table (cortex-m-rt's `device` feature): the firmware polls
+/// CAN and enables no interrupt, so every vector is the default handler. 328 bytes, not the
+/// 960 of cortex-m-rt's generic table of 240 vectors.
+#[unsafe(link_section = ".vector_table.interrupts")]
+#[unsafe(no_mangle)]
+static __INTERRUPTS: [unsafe extern "C" fn(); IRQS] = [DefaultHandler; IRQS];
+
 #[exception]
 fn SysTick() {
     MILLIS.fetch_add(1, Ordering::Relaxed);
