@@ -219,6 +219,10 @@ fn cli_nmt_commands_show_in_the_monitor_decoded() {
         let pdo = lines.iter().find(|v| v["kind"] == "pdo").unwrap();
         assert!(pdo["fields"]["statusword"].is_u64(), "{pdo}");
     }
+    // The other commands, to a node and to all.
+    for args in [["nmt", "stop", "5"], ["nmt", "reset-comm", "all"], ["nmt", "reset", "5"]] {
+        assert_eq!(rig.cli(&args).code, 0, "{args:?}");
+    }
     // A duration ends it too, with nothing seen on a quiet bus.
     let out = rig.cli(&["monitor", "--duration", "0.2"]);
     assert_eq!(out.code, 0, "{}", out.stderr);
