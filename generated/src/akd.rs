@@ -6279,7 +6279,7 @@ Denotation=MOTOR.BRAKEIMM
         /// `0x5085` Zero procedure current.
         pub const ZERO_PROCEDURE_CURRENT: u16 = 0x5085;
         /// `0x508C` BiSS sensor position bits.
-        pub const BI_SS_SENSOR_POSITION_BITS: u16 = 0x508C;
+        pub const BISS_SENSOR_POSITION_BITS: u16 = 0x508C;
         /// `0x508F` Initial feedback value signed.
         pub const INITIAL_FEEDBACK_VALUE_SIGNED: u16 = 0x508F;
         /// `0x5096` Phase finding current.
@@ -13747,7 +13747,7 @@ Denotation=MOTOR.BRAKEIMM
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
-                ::core::mem::offset_of!(Dictionary, bi_ss_sensor_position_bits),
+                ::core::mem::offset_of!(Dictionary, biss_sensor_position_bits),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
@@ -17349,7 +17349,7 @@ Denotation=MOTOR.BRAKEIMM
         drive_continuous_rated_current: u32,
         drive_peak_rated_current: u32,
         zero_procedure_current: u32,
-        bi_ss_sensor_position_bits: u32,
+        biss_sensor_position_bits: u32,
         initial_feedback_value_signed: u32,
         phase_finding_current: u32,
         feedback_poles: u32,
@@ -17963,7 +17963,7 @@ Denotation=MOTOR.BRAKEIMM
                 drive_continuous_rated_current: 0,
                 drive_peak_rated_current: 0,
                 zero_procedure_current: 0,
-                bi_ss_sensor_position_bits: 0,
+                biss_sensor_position_bits: 0,
                 initial_feedback_value_signed: 0,
                 phase_finding_current: 0,
                 feedback_poles: 0,
@@ -18571,7 +18571,7 @@ Denotation=MOTOR.BRAKEIMM
                 drive_continuous_rated_current: 0,
                 drive_peak_rated_current: 0,
                 zero_procedure_current: 0,
-                bi_ss_sensor_position_bits: 0,
+                biss_sensor_position_bits: 0,
                 initial_feedback_value_signed: 0,
                 phase_finding_current: 0,
                 feedback_poles: 0,
@@ -26861,16 +26861,16 @@ Denotation=MOTOR.BRAKEIMM
         ///
         /// Vendor parameter: `FB1.BISSBITS`.
         #[inline]
-        pub const fn bi_ss_sensor_position_bits(&self) -> u32 {
-            self.bi_ss_sensor_position_bits
+        pub const fn biss_sensor_position_bits(&self) -> u32 {
+            self.biss_sensor_position_bits
         }
-        /// Sets `0x508C` BiSS sensor position bits (see [`Self::bi_ss_sensor_position_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
+        /// Sets `0x508C` BiSS sensor position bits (see [`Self::biss_sensor_position_bits`]): limits are checked, the access type is not (the bus side, `bus_write`, checks it).
         #[inline]
-        pub fn set_bi_ss_sensor_position_bits(
+        pub fn set_biss_sensor_position_bits(
             &mut self,
             v: u32,
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            self.bi_ss_sensor_position_bits = v;
+            self.biss_sensor_position_bits = v;
             Ok(())
         }
         /// Reads `0x508F` Initial feedback value signed.

@@ -5,31 +5,11 @@ use eds::model::{Access, DataType, Model};
 use proc_macro2::TokenStream;
 use quote::{format_ident, quote};
 
+pub(crate) use crate::entry::{display_name, location, rust_type};
 use crate::lit;
 use crate::plan::{Def, PEntry, Plan, Ty};
 use crate::support::rt;
 use crate::text::{Nest, Parts, Text, fits, pretty};
-
-pub(crate) fn rust_type(ty: Ty) -> TokenStream {
-    match ty {
-        Ty::Bool => quote!(bool),
-        Ty::U8 => quote!(u8),
-        Ty::U16 => quote!(u16),
-        Ty::U32 => quote!(u32),
-        Ty::U64 => quote!(u64),
-        Ty::I8 => quote!(i8),
-        Ty::I16 => quote!(i16),
-        Ty::I32 => quote!(i32),
-        Ty::I64 => quote!(i64),
-        Ty::F32 => quote!(f32),
-        Ty::F64 => quote!(f64),
-        Ty::Bytes(n) => {
-            let n = proc_macro2::Literal::usize_unsuffixed(n);
-            let rt = rt();
-            quote!(#rt::Bytes<#n>)
-        }
-    }
-}
 
 fn data_type_variant(dt: DataType) -> proc_macro2::Ident {
     format_ident!("{}", data_type_name(dt))
@@ -80,24 +60,6 @@ fn access_name(a: Access) -> &'static str {
         Access::Rwr => "Rwr",
         Access::Rww => "Rww",
         Access::Const => "Const",
-    }
-}
-
-/// `0x6040` or `0x1018 sub 2`.
-pub(crate) fn location(e: &PEntry<'_>) -> String {
-    if e.obj.object_type.has_subs() {
-        format!("`0x{:04X}` sub {}", e.index, e.sub)
-    } else {
-        format!("`0x{:04X}`", e.index)
-    }
-}
-
-/// The display name: `Identity object: Vendor-ID` or `Controlword`.
-pub(crate) fn display_name(e: &PEntry<'_>) -> String {
-    if e.obj.object_type.has_subs() {
-        format!("{}: {}", e.obj.name.trim(), e.entry.name.trim())
-    } else {
-        e.obj.name.trim().to_owned()
     }
 }
 
@@ -395,7 +357,7 @@ fn rust_type_text(ty: Ty) -> String {
 /// The size in bits a row's flags give a fixed-size value (0 for a variable-length type): the
 /// runtime's own size of the entry's data type, so the two cannot differ.
 fn fixed_bits(e: &PEntry<'_>) -> u8 {
-    crate::pdo::to_runtime_type(e.dt).bits() as u8
+    crate::entry::to_runtime_type(e.dt).bits() as u8
 }
 
 /// One row of `ENTRIES` (an element of the array, 8 columns in), as tokens.
@@ -812,14 +774,9 @@ fn setter_text(t: &mut Text, e: &PEntry<'_>) {
     t.line(8, &["}"]);
 }
 
-/// The storage struct, its inherent methods and the trait implementation.
-pub(crate) fn dictionary(
-    model: &Model,
-    plan: &Plan<'_>,
-    names: &crate::Names,
-    sidecar: Option<&crate::sidecar::Sidecar>,
-    parts: &mut Parts,
-) -> TokenStream {
+/// The `Dictionary` struct: one field per entry, written as text when every field fits the
+/// margin.
+fn dictionary_struct(model: &Model, plan: &Plan<'_>, parts: &mut Parts) -> TokenStream {
     let product = model.device_info.product_name.as_deref().unwrap_or("device");
     let vendor = model.device_info.vendor_name.as_deref().unwrap_or("unknown vendor");
     let struct_doc = vec![
@@ -867,8 +824,11 @@ pub(crate) fn dictionary(
             Nest::Item,
         )
     };
-    let struct_item = parts.put(struct_item);
+    parts.put(struct_item)
+}
 
+/// `Dictionary::new(node_id)`: every entry at its default, `$NODEID` resolved.
+fn constructor_new(plan: &Plan<'_>, parts: &mut Parts) -> TokenStream {
     let uses_node_id = plan.entries.iter().any(|e| matches!(e.default, Def::NodeId(..)));
     let node_id = if uses_node_id { format_ident!("node_id") } else { format_ident!("_node_id") };
     let new_doc = vec!["A dictionary holding every entry's default, with `$NODEID` resolved for `node_id`.".to_owned()];
@@ -887,7 +847,11 @@ pub(crate) fn dictionary(
             }
         }
     });
-    let new_fn = parts.put(new_fn);
+    parts.put(new_fn)
+}
+
+/// `Dictionary::zeroed()`: every value zero, every buffer empty.
+fn constructor_zeroed(plan: &Plan<'_>, parts: &mut Parts) -> TokenStream {
     let zeroed_doc = vec![
         "Every value zero, every buffer empty. A device's first poll (its reset node)".to_owned(),
         "restores the defaults, so a firmware can start from this: its device then".to_owned(),
@@ -908,11 +872,15 @@ pub(crate) fn dictionary(
             }
         }
     });
-    let zeroed_fn = parts.put(zeroed_fn);
-    let rt = rt();
+    parts.put(zeroed_fn)
+}
+
+/// The statement of `write_at` that gives `(real_low, real_high)`, the REAL limits of the entry
+/// at `pos`.
+fn real_limits(plan: &Plan<'_>) -> TokenStream {
     let real_limited: Vec<&PEntry<'_>> =
         plan.entries.iter().filter(|e| e.real_low.is_some() || e.real_high.is_some()).collect();
-    let real_limits = if real_limited.is_empty() {
+    if real_limited.is_empty() {
         quote!(let (real_low, real_high) = (None, None);)
     } else {
         let arms = plan.entries.iter().enumerate().filter(|(_, e)| e.real_low.is_some() || e.real_high.is_some()).map(
@@ -930,8 +898,12 @@ pub(crate) fn dictionary(
             },
         );
         quote!(let (real_low, real_high) = match pos { #(#arms,)* _ => (None, None) };)
-    };
-    let name_fn = {
+    }
+}
+
+/// `ObjectDictionary::name`, as `names` asks (never, always, or behind a feature).
+fn name_fn(names: &crate::Names) -> TokenStream {
+    {
         let body = quote! {
             fn name(&self, index: u16, sub: u8) -> Option<&'static str> {
                 Self::position(index, sub).ok().and_then(|pos| NAMES.get(pos).copied())
@@ -942,8 +914,12 @@ pub(crate) fn dictionary(
             crate::Names::Always => body,
             crate::Names::Feature(f) => quote!(#[cfg(feature = #f)] #body),
         }
-    };
-    let accessors = if plan.entries.is_empty() {
+    }
+}
+
+/// Every entry's getter and setter, as text.
+fn accessors(plan: &Plan<'_>, sidecar: Option<&crate::sidecar::Sidecar>, parts: &mut Parts) -> TokenStream {
+    if plan.entries.is_empty() {
         TokenStream::new()
     } else {
         let mut t = Text::with_capacity(plan.entries.len() * 900);
@@ -952,11 +928,19 @@ pub(crate) fn dictionary(
             setter_text(&mut t, e);
         }
         parts.put(t.out)
-    };
+    }
+}
 
+/// `impl Dictionary`: the constructors, the look-up of an entry's position, the slot-based
+/// read and write every access goes through, and the typed accessors.
+fn inherent_impl(
+    new_fn: TokenStream,
+    zeroed_fn: TokenStream,
+    real_limits: TokenStream,
+    accessors: TokenStream,
+) -> TokenStream {
+    let rt = rt();
     quote! {
-        #struct_item
-
         impl Dictionary {
             #new_fn
 
@@ -1029,7 +1013,13 @@ pub(crate) fn dictionary(
 
             #accessors
         }
+    }
+}
 
+/// The runtime's `Table` and `ObjectDictionary` implementations for `Dictionary`.
+fn trait_impls(name_fn: TokenStream) -> TokenStream {
+    let rt = rt();
+    quote! {
         // SAFETY: every slot in ENTRIES is `offset::<T>(offset_of!(Dictionary, field), …)` of
         // the entry's own field, whose type `offset` checked at compile time.
         unsafe impl #rt::Table for Dictionary {
@@ -1105,6 +1095,31 @@ pub(crate) fn dictionary(
                 self.write_at(h.get() as usize, data)
             }
         }
+    }
+}
+
+/// The storage struct, its inherent methods and the trait implementation.
+pub(crate) fn dictionary(
+    model: &Model,
+    plan: &Plan<'_>,
+    names: &crate::Names,
+    sidecar: Option<&crate::sidecar::Sidecar>,
+    parts: &mut Parts,
+) -> TokenStream {
+    let struct_item = dictionary_struct(model, plan, parts);
+    let new_fn = constructor_new(plan, parts);
+    let zeroed_fn = constructor_zeroed(plan, parts);
+    let real_limits = real_limits(plan);
+    let name_fn = name_fn(names);
+    let accessors = accessors(plan, sidecar, parts);
+    let inherent = inherent_impl(new_fn, zeroed_fn, real_limits, accessors);
+    let traits = trait_impls(name_fn);
+    quote! {
+        #struct_item
+
+        #inherent
+
+        #traits
     }
 }
 

@@ -8,13 +8,18 @@
 //!   letter and a digit (`RxPDO1` → `rx`, `pdo1`). A run of capitals with a plural `s` is one
 //!   word (`COB-IDs` → `cob`, `ids`). Letters outside ASCII are spelt in ASCII (`ü` → `ue`,
 //!   `é` → `e`, `°` → `deg`); other characters separate words and are dropped.
-//! * A leading ordinal moves to the end as a number (`1st receive PDO parameter` →
-//!   `receive_pdo_parameter_1`).
+//!   A single lower-case letter before a capital is a prefix (`mA` → `ma`, `kHz` → `khz`). Case
+//!   alone cannot split every word right (`CANopen` reads like `SDOServer`, `EtherCAT` like
+//!   `RxPDO`), so a short list of the field's mixed-case words ([`FIELD_WORDS`]) is matched
+//!   first: `CANopen baudrate` → `canopen_baudrate`.
+//! * Leading numbers, in any form (`1.`, `1)`, `1-`, `1st`, `1rst`, `5V`, `8-Bit`), move behind
+//!   the other words, an ordinal as its number (`1. Receive PDO parameter` →
+//!   `receive_pdo_parameter_1`, `5V DC supply` → `dc_supply_5v`); a name that is only a number
+//!   spells it (`2nd` → `second`). No name starts with a digit, so none needs a prefix.
 //! * `snake_case` for fields and methods, `SCREAMING_SNAKE_CASE` for constants, `CamelCase` for
 //!   types.
-//! * A name that would start with a digit gets an `x`/`X` prefix (`24V supply` → `x24v_supply`).
 //! * A name that is a Rust keyword gets a trailing underscore (`type` → `type_`).
-//! * An empty name (no letters or digits at all) falls back to the index: `x2001`, `sub3`.
+//! * An empty name (no letters or digits at all) falls back to the index: `object_2001`, `sub3`.
 //! * A name longer than [`MAX_LEN`] is shortened by [`shorten`], never cut inside a word.
 //! * Collisions the planner's rules do not resolve are settled by [`Names`]: the later
 //!   claimant gets a suffix made of its index (and sub-index), and a warning says so.
@@ -56,22 +61,181 @@ fn transliterate(c: char) -> Option<&'static str> {
     })
 }
 
-/// Whether `w` is an ordinal written with digits (`1st`, `2nd`, `3rd`, `4th`, `21st`); gives
-/// its number.
+/// Mixed-case words of the field that are one word, as they are written. Case alone cannot
+/// tell `CANopen` (`CAN` + `open`) from `SDOServer` (`SDO` + `Server`), nor `EtherCAT` from
+/// `RxPDO` (`Rx` + `PDO`): the splitting rule follows the common camel-case reading, and these
+/// few names of buses, encoders and standards, which read the other way, are matched before it
+/// (`CANopenNode` → `canopen`, `node`; `CiA402` → `cia402`). Only a spelling listed here, with
+/// no lower-case letter right after it, is matched.
+pub const FIELD_WORDS: &[&str] = &["CANopen", "EtherCAT", "PLCopen", "CiA", "BiSS", "EnDat", "DeviceNet", "EtherNet"];
+
+/// Letters after the digits of an ordinal: English `1st`, `2nd`, `3rd`, `4th` (and `3th`,
+/// `1rst` as vendors write them), French `1er`, `1re`, `2e`, `2eme` (`2ème`).
+const ORDINAL_ENDINGS: &[&str] = &["st", "nd", "rd", "th", "rst", "er", "re", "ere", "e", "eme", "ieme"];
+
+/// The digits of `w` when it is an ordinal written with digits (`1st`, `21st`, `1rst`, `2eme`).
 fn ordinal(w: &str) -> Option<&str> {
     let digits = w.trim_end_matches(|c: char| c.is_ascii_alphabetic());
     let suffix = &w[digits.len()..];
-    (!digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit()) && matches!(suffix, "st" | "nd" | "rd" | "th"))
+    (!digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit()) && ORDINAL_ENDINGS.contains(&suffix))
         .then_some(digits)
+}
+
+fn starts_with_digit(w: &str) -> bool {
+    w.starts_with(|c: char| c.is_ascii_digit())
+}
+
+/// The longest word a hyphen binds to a leading number as its measure (`8-Bit`, `2-axis`,
+/// `3-phase`); a longer one (`1-Receive`) starts the name's own words.
+const MEASURE_LEN: usize = 5;
+
+/// A name's leading numbers, in any form (`1.`, `1)`, `1-`, `1st`, `1rst`, `2eme`, `5V`,
+/// `8-Bit`, `1 2`), move behind its other words, where a person puts an index or a measure:
+/// `1. Receive PDO parameter` → `receive pdo parameter 1`, `5V DC supply` → `dc supply 5v`,
+/// `8-Bit analog Input 1` → `analog input 1 8 bit`. An ordinal keeps only its number. A name
+/// that is nothing but numbers spells its first one out (`2nd` → `second`, `5V` → `five v`,
+/// `1234` → `number 1234`). So no word list starts with a digit.
+///
+/// `hyphen[i]`: a single `-` joined word `i` to the one before.
+fn move_leading_numbers(words: Vec<String>, hyphen: &[bool]) -> Vec<String> {
+    if !words.first().is_some_and(|w| starts_with_digit(w)) {
+        return words;
+    }
+    let mut lead = Vec::new();
+    let mut i = 0;
+    while i < words.len() && starts_with_digit(&words[i]) {
+        lead.push(ordinal(&words[i]).unwrap_or(&words[i]).to_owned());
+        i += 1;
+        if i < words.len()
+            && hyphen.get(i).copied().unwrap_or(false)
+            && words[i].len() <= MEASURE_LEN
+            && words[i].bytes().all(|b| b.is_ascii_alphabetic())
+        {
+            lead.push(words[i].clone());
+            i += 1;
+        }
+    }
+    let mut out = words[i..].to_vec();
+    if out.is_empty() {
+        let first = &words[0];
+        let digits = first.trim_end_matches(|c: char| c.is_ascii_alphabetic());
+        let spelt = if ordinal(first).is_some() { spell_ordinal(digits) } else { spell_cardinal(digits) };
+        match spelt {
+            Some(spelt) => {
+                out.extend(spelt);
+                let unit = if ordinal(first).is_some() { "" } else { &first[digits.len()..] };
+                if !unit.is_empty() {
+                    out.push(unit.to_owned());
+                }
+            }
+            None => {
+                out.push("number".to_owned());
+                out.push(lead[0].clone());
+            }
+        }
+        out.extend(lead.into_iter().skip(1));
+    } else {
+        out.extend(lead);
+    }
+    out
+}
+
+const ONES: [&str; 20] = [
+    "zero",
+    "one",
+    "two",
+    "three",
+    "four",
+    "five",
+    "six",
+    "seven",
+    "eight",
+    "nine",
+    "ten",
+    "eleven",
+    "twelve",
+    "thirteen",
+    "fourteen",
+    "fifteen",
+    "sixteen",
+    "seventeen",
+    "eighteen",
+    "nineteen",
+];
+const ONES_TH: [&str; 20] = [
+    "zeroth",
+    "first",
+    "second",
+    "third",
+    "fourth",
+    "fifth",
+    "sixth",
+    "seventh",
+    "eighth",
+    "ninth",
+    "tenth",
+    "eleventh",
+    "twelfth",
+    "thirteenth",
+    "fourteenth",
+    "fifteenth",
+    "sixteenth",
+    "seventeenth",
+    "eighteenth",
+    "nineteenth",
+];
+const TENS: [&str; 10] = ["", "", "twenty", "thirty", "forty", "fifty", "sixty", "seventy", "eighty", "ninety"];
+const TENS_TH: [&str; 10] =
+    ["", "", "twentieth", "thirtieth", "fortieth", "fiftieth", "sixtieth", "seventieth", "eightieth", "ninetieth"];
+
+/// The number below 100 written in `digits` (no leading zero but `0` itself).
+fn small_number(digits: &str) -> Option<usize> {
+    if digits.is_empty() || digits.len() > 2 || (digits.len() == 2 && digits.starts_with('0')) {
+        return None;
+    }
+    digits.parse().ok()
+}
+
+/// `21` → `twenty one`; `None` from 100 on.
+fn spell_cardinal(digits: &str) -> Option<Vec<String>> {
+    let n = small_number(digits)?;
+    Some(match n {
+        0..20 => vec![ONES[n].to_owned()],
+        _ if n % 10 == 0 => vec![TENS[n / 10].to_owned()],
+        _ => vec![TENS[n / 10].to_owned(), ONES[n % 10].to_owned()],
+    })
+}
+
+/// `21` → `twenty first`; `None` from 100 on.
+fn spell_ordinal(digits: &str) -> Option<Vec<String>> {
+    let n = small_number(digits)?;
+    Some(match n {
+        0..20 => vec![ONES_TH[n].to_owned()],
+        _ if n % 10 == 0 => vec![TENS_TH[n / 10].to_owned()],
+        _ => vec![TENS[n / 10].to_owned(), ONES_TH[n % 10].to_owned()],
+    })
+}
+
+/// The field word ([`FIELD_WORDS`]) written at `chars[i..]`, if one is, with nothing but a
+/// non-lower-case character after it.
+fn field_word_at(chars: &[char], i: usize) -> Option<&'static str> {
+    FIELD_WORDS.iter().copied().find(|w| {
+        let n = w.chars().count();
+        chars.len() >= i + n
+            && w.chars().zip(&chars[i..i + n]).all(|(a, b)| a == *b)
+            && !chars.get(i + n).is_some_and(|c| c.is_ascii_lowercase())
+    })
 }
 
 /// Splits a parameter name into lower-case ASCII words.
 ///
 /// Besides splitting at non-alphanumerics and case changes: letters outside ASCII are spelt in
 /// ASCII (`Übergröße` → `uebergroesse`), an apostrophe inside a word is dropped (`won't` →
-/// `wont`), a run of capitals with a plural `s` is one word (`COB-IDs` → `cob`, `ids`), and a
-/// leading ordinal moves to the end as a number (`1st receive PDO parameter` → `receive`,
-/// `pdo`, `parameter`, `1`), so no name needs an `x` prefix for it.
+/// `wont`), a run of capitals with a plural `s` is one word (`COB-IDs` → `cob`, `ids`), a
+/// single lower-case letter before a capital is its prefix, not a word (`mA` → `ma`, `kHz` →
+/// `khz`), the field's mixed-case words stay whole ([`FIELD_WORDS`]: `CANopen` → `canopen`),
+/// and leading numbers move behind the other words ([`move_leading_numbers`]: `1st receive PDO
+/// parameter` → `receive`, `pdo`, `parameter`, `1`), so no word list starts with a digit.
 pub fn words(name: &str) -> Vec<String> {
     let mut chars: Vec<char> = Vec::with_capacity(name.len());
     for c in name.chars() {
@@ -81,15 +245,37 @@ pub fn words(name: &str) -> Vec<String> {
         }
     }
     let mut out = Vec::new();
+    // Whether a single `-` joined each word of `out` to the one before.
+    let mut hyphen = Vec::new();
+    let mut sep = String::new();
     let mut cur = String::new();
-    for (i, &c) in chars.iter().enumerate() {
+    let mut push = |cur: &mut String, sep: &mut String, out: &mut Vec<String>| {
+        if !cur.is_empty() {
+            hyphen.push(sep == "-");
+            out.push(std::mem::take(cur));
+            sep.clear();
+        }
+    };
+    let mut i = 0;
+    while i < chars.len() {
+        let c = chars[i];
         if (c == '\'' || c == '’') && !cur.is_empty() && chars.get(i + 1).is_some_and(|n| n.is_ascii_alphabetic()) {
+            i += 1;
             continue;
         }
         if !c.is_ascii_alphanumeric() {
-            if !cur.is_empty() {
-                out.push(std::mem::take(&mut cur));
-            }
+            push(&mut cur, &mut sep, &mut out);
+            sep.push(c);
+            i += 1;
+            continue;
+        }
+        if c.is_ascii_uppercase()
+            && (cur.is_empty() || chars[i - 1].is_ascii_lowercase())
+            && let Some(w) = field_word_at(&chars, i)
+        {
+            push(&mut cur, &mut sep, &mut out);
+            cur.push_str(&w.to_ascii_lowercase());
+            i += w.chars().count();
             continue;
         }
         if !cur.is_empty() && c.is_ascii_uppercase() {
@@ -98,23 +284,17 @@ pub fn words(name: &str) -> Vec<String> {
             let next_lower = next.is_some_and(|n| n.is_ascii_lowercase());
             // `IDs`, `PDOs`: the lower-case `s` ends the word, it does not start one.
             let plural_s = next == Some('s') && !chars.get(i + 2).is_some_and(|n| n.is_ascii_lowercase());
-            if prev.is_ascii_lowercase() || (prev.is_ascii_uppercase() && next_lower && !plural_s) {
-                out.push(std::mem::take(&mut cur));
+            // `mA`, `kHz`: a lone lower-case letter is a prefix of what follows.
+            let prefix = cur.len() == 1 && prev.is_ascii_lowercase();
+            if (prev.is_ascii_lowercase() && !prefix) || (prev.is_ascii_uppercase() && next_lower && !plural_s) {
+                push(&mut cur, &mut sep, &mut out);
             }
         }
         cur.push(c.to_ascii_lowercase());
+        i += 1;
     }
-    if !cur.is_empty() {
-        out.push(cur);
-    }
-    if out.len() > 1
-        && let Some(n) = ordinal(&out[0])
-    {
-        let n = n.to_owned();
-        out.remove(0);
-        out.push(n);
-    }
-    out
+    push(&mut cur, &mut sep, &mut out);
+    move_leading_numbers(out, &hyphen)
 }
 
 /// Whole-word abbreviations used only to bring a name under [`MAX_LEN`].
@@ -216,10 +396,8 @@ const KEYWORDS: &[&str] = &[
     "box", "do", "final", "macro", "override", "priv", "try", "typeof", "unsized", "virtual", "yield",
 ];
 
-fn finish(mut s: String, prefix: char) -> String {
-    if s.starts_with(|c: char| c.is_ascii_digit()) {
-        s.insert(0, prefix);
-    }
+/// Escapes a keyword. ([`words`] never starts with a digit, so neither does a name.)
+fn finish(mut s: String) -> String {
     if KEYWORDS.contains(&s.as_str()) || s == "Self" || s == "_" {
         s.push('_');
     }
@@ -229,12 +407,12 @@ fn finish(mut s: String, prefix: char) -> String {
 /// `snake_case`, or `None` when the name has no letters or digits.
 pub fn snake(name: &str) -> Option<String> {
     let w = words(name);
-    if w.is_empty() { None } else { Some(finish(w.join("_"), 'x')) }
+    if w.is_empty() { None } else { Some(finish(w.join("_"))) }
 }
 
 /// `SCREAMING_SNAKE_CASE`, or `None` when the name has no letters or digits.
 pub fn screaming(name: &str) -> Option<String> {
-    snake(name).map(|s| s.trim_end_matches('_').to_ascii_uppercase()).map(|s| finish(s, 'X'))
+    snake(name).map(|s| s.trim_end_matches('_').to_ascii_uppercase()).map(finish)
 }
 
 /// `CamelCase`, or `None` when the name has no letters or digits.
@@ -251,7 +429,7 @@ pub fn camel(name: &str) -> Option<String> {
             s.extend(cs);
         }
     }
-    Some(finish(s, 'X'))
+    Some(finish(s))
 }
 
 /// A set of claimed names in one namespace.
@@ -320,23 +498,51 @@ mod tests {
         assert_eq!(snake("TPDOMapping").as_deref(), Some("tpdo_mapping"));
         assert_eq!(snake("homeOffset").as_deref(), Some("home_offset"));
         assert_eq!(snake("Vendor-ID").as_deref(), Some("vendor_id"));
-        assert_eq!(snake("24V supply").as_deref(), Some("x24v_supply"));
+        assert_eq!(snake("24V supply").as_deref(), Some("supply_24v"));
         assert_eq!(snake("Type").as_deref(), Some("type_"));
         assert_eq!(snake("Übergröße").as_deref(), Some("uebergroesse"));
         assert_eq!(snake("COB-IDs").as_deref(), Some("cob_ids"));
         assert_eq!(snake("Number of PDOs").as_deref(), Some("number_of_pdos"));
         assert_eq!(snake("IDs").as_deref(), Some("ids"));
         assert_eq!(snake("IDsize").as_deref(), Some("i_dsize"));
+        assert_eq!(snake("CANopen baudrate").as_deref(), Some("canopen_baudrate"));
+        assert_eq!(snake("AKD CANopen").as_deref(), Some("akd_canopen"));
+        assert_eq!(snake("CANopenNode").as_deref(), Some("canopen_node"));
+        assert_eq!(snake("EtherCAT state").as_deref(), Some("ethercat_state"));
+        assert_eq!(snake("CiA402 mode").as_deref(), Some("cia402_mode"));
+        assert_eq!(snake("BiSS sensor position bits").as_deref(), Some("biss_sensor_position_bits"));
+        assert_eq!(snake("Number of IOs").as_deref(), Some("number_of_ios"));
+        assert_eq!(snake("SDOServer").as_deref(), Some("sdo_server"));
+        assert_eq!(snake("Current mA").as_deref(), Some("current_ma"));
+        assert_eq!(snake("Frequency (10 kHz)").as_deref(), Some("frequency_10_khz"));
         assert_eq!(snake("RxPDO1").as_deref(), Some("rx_pdo1"));
         assert_eq!(snake("won't").as_deref(), Some("wont"));
         assert_eq!(snake("1st receive PDO parameter").as_deref(), Some("receive_pdo_parameter_1"));
-        assert_eq!(snake("2nd").as_deref(), Some("x2nd"));
+        assert_eq!(snake("1. Receive PDO parameter").as_deref(), Some("receive_pdo_parameter_1"));
+        assert_eq!(snake("1) Receive PDO parameter").as_deref(), Some("receive_pdo_parameter_1"));
+        assert_eq!(snake("1- Receive PDO parameter").as_deref(), Some("receive_pdo_parameter_1"));
+        assert_eq!(
+            snake("1rst receive PDO communication parameter").as_deref(),
+            Some("receive_pdo_communication_parameter_1")
+        );
+        assert_eq!(snake("2eme entree").as_deref(), Some("entree_2"));
+        assert_eq!(snake("5V DC supply").as_deref(), Some("dc_supply_5v"));
+        assert_eq!(snake("8-Bit analog Input 1").as_deref(), Some("analog_input_1_8_bit"));
+        assert_eq!(snake("1-Receive PDO").as_deref(), Some("receive_pdo_1"));
+        assert_eq!(snake("1-4 inputs").as_deref(), Some("inputs_1_4"));
+        assert_eq!(snake("2nd").as_deref(), Some("second"));
+        assert_eq!(snake("21st").as_deref(), Some("twenty_first"));
+        assert_eq!(snake("5V").as_deref(), Some("five_v"));
+        assert_eq!(snake("40").as_deref(), Some("forty"));
+        assert_eq!(snake("1234").as_deref(), Some("number_1234"));
+        assert_eq!(snake("16-Bit").as_deref(), Some("sixteen_bit"));
         assert_eq!(snake("Velocity [mm/s]").as_deref(), Some("velocity_mm_s"));
         assert_eq!(snake(" -- "), None);
         assert_eq!(screaming("Controlword").as_deref(), Some("CONTROLWORD"));
         assert_eq!(screaming("Type").as_deref(), Some("TYPE"));
         assert_eq!(screaming("1st value").as_deref(), Some("VALUE_1"));
-        assert_eq!(screaming("8-bit input").as_deref(), Some("X8_BIT_INPUT"));
+        assert_eq!(screaming("8-bit input").as_deref(), Some("INPUT_8_BIT"));
+        assert_eq!(camel("2nd encoder").as_deref(), Some("Encoder2"));
         assert_eq!(camel("transmit PDO 1").as_deref(), Some("TransmitPdo1"));
         assert_eq!(camel("self").as_deref(), Some("Self_"));
     }

@@ -97,6 +97,7 @@
 mod builder;
 pub mod diag;
 mod emit;
+mod entry;
 pub mod ident;
 mod lit;
 mod lookup;

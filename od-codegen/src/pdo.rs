@@ -11,7 +11,7 @@
 use std::collections::BTreeMap;
 
 use eds::diag::Severity;
-use eds::model::{DataType, Entry, Model, Object, PdoMappingEntry, Role, Value};
+use eds::model::{Entry, Model, Object, PdoMappingEntry, Role, Value};
 use proc_macro2::TokenStream;
 use quote::{format_ident, quote};
 
@@ -19,7 +19,7 @@ use od_runtime::od::AbortCode;
 
 use crate::Options;
 use crate::diag::{self, Sink};
-use crate::emit::rust_type;
+use crate::entry::{display_name, location, rust_type, to_runtime_type};
 use crate::lit;
 use crate::plan::{PEntry, Plan, Ty, effective_value};
 
@@ -45,37 +45,6 @@ pub fn granularity(model: &Model) -> u8 {
 /// Bit `n` set when `Dummy000n=1`.
 pub fn dummy_usage(model: &Model) -> u8 {
     model.dummy_usage.iter().filter(|(k, v)| **v && (1..=7).contains(*k)).fold(0u8, |acc, (k, _)| acc | (1 << *k))
-}
-
-pub(crate) fn to_runtime_type(dt: DataType) -> od_runtime::od::DataType {
-    use od_runtime::od::DataType as R;
-    match dt {
-        DataType::Boolean => R::Boolean,
-        DataType::Integer8 => R::Integer8,
-        DataType::Integer16 => R::Integer16,
-        DataType::Integer32 => R::Integer32,
-        DataType::Unsigned8 => R::Unsigned8,
-        DataType::Unsigned16 => R::Unsigned16,
-        DataType::Unsigned32 => R::Unsigned32,
-        DataType::Real32 => R::Real32,
-        DataType::VisibleString => R::VisibleString,
-        DataType::OctetString => R::OctetString,
-        DataType::UnicodeString => R::UnicodeString,
-        DataType::TimeOfDay => R::TimeOfDay,
-        DataType::TimeDifference => R::TimeDifference,
-        DataType::Domain | DataType::Other(_) => R::Domain,
-        DataType::Integer24 => R::Integer24,
-        DataType::Real64 => R::Real64,
-        DataType::Integer40 => R::Integer40,
-        DataType::Integer48 => R::Integer48,
-        DataType::Integer56 => R::Integer56,
-        DataType::Integer64 => R::Integer64,
-        DataType::Unsigned24 => R::Unsigned24,
-        DataType::Unsigned40 => R::Unsigned40,
-        DataType::Unsigned48 => R::Unsigned48,
-        DataType::Unsigned56 => R::Unsigned56,
-        DataType::Unsigned64 => R::Unsigned64,
-    }
 }
 
 fn to_runtime_access(a: eds::model::Access) -> od_runtime::od::Access {
@@ -106,7 +75,7 @@ fn explain(plan: &Plan<'_>, dir: Direction, raw: u32, code: AbortCode) -> Mappin
     let m = PdoMappingEntry::from_u32(raw);
     let target = plan.entries.iter().find(|e| e.index == m.index.0 && e.sub == m.sub.0);
     let what = match target {
-        Some(t) => format!("0x{:04X} sub {} \"{}\"", t.index, t.sub, crate::emit::display_name(t)),
+        Some(t) => format!("0x{:04X} sub {} \"{}\"", t.index, t.sub, display_name(t)),
         None => format!("0x{:04X} sub {}", m.index.0, m.sub.0),
     };
     let (diag_code, message) = match (code, target) {
@@ -508,8 +477,8 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sink: &mut Sink) -> TokenSt
             match f.entry {
                 Some(e) => doc.push(format!(
                     "| {range} | {} {} | `{}` |",
-                    crate::emit::location(e),
-                    lit::doc_escape(&crate::emit::display_name(e)),
+                    location(e),
+                    lit::doc_escape(&display_name(e)),
                     f.name
                 )),
                 None => doc.push(format!("| {range} | dummy | (zero) |")),
@@ -522,8 +491,8 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sink: &mut Sink) -> TokenSt
             let ty = rust_type(e.ty);
             let d = lit::doc(&[format!(
                 "{} {} (bits {}..{}).",
-                crate::emit::location(e),
-                lit::doc_escape(&crate::emit::display_name(e)),
+                location(e),
+                lit::doc_escape(&display_name(e)),
                 f.offset,
                 f.offset + f.bits
             )]);

@@ -196,7 +196,7 @@ fn object_words(model: &Model) -> std::collections::BTreeMap<u16, Vec<String>> {
     for obj in model.objects.values().filter(|o| holds_values(o)) {
         let mut w = ident::words(&obj.name);
         if w.is_empty() {
-            w.push(format!("x{:04x}", obj.index.0));
+            w = vec!["object".to_owned(), format!("{:04x}", obj.index.0)];
         }
         groups.entry(w.clone()).or_default().push(obj);
         words.insert(obj.index.0, w);

@@ -6,7 +6,8 @@
 //!   of collision handling);
 //! * no accessor name is longer than 64 characters;
 //! * at most one name-collision warning (G0001) per object;
-//! * no name starts with an `x` before an ordinal (`x1st_…`), none splits a plural acronym
+//! * no name starts with a number or an `x` before one (`x1st_…`, `x1_…`, `x5v_…`), none splits
+//!   a mixed-case field word of its entry's names (`ca_nopen`), none splits a plural acronym
 //!   (`cob_i_ds`), none repeats a word right after itself (`error_history_error_history`);
 //! * no sub-entry's accessor says a run of two or more of its object's words twice
 //!   (`software_position_limit_max_software_position_limit`, `touch_probe_source_touch_probe_1_source`),
@@ -60,6 +61,12 @@ fn getters(text: &str) -> Vec<(String, u16, Option<u8>)> {
     out
 }
 
+/// Whether `name` starts with a number or a number in disguise (`x1_…`, `x1st_…`, `x5v_…`).
+fn starts_with_number(name: &str) -> bool {
+    let b = name.as_bytes();
+    b.first().is_some_and(u8::is_ascii_digit) || (b.first() == Some(&b'x') && b.get(1).is_some_and(u8::is_ascii_digit))
+}
+
 fn has_index_suffix(name: &str, index: u16, sub: Option<u8>) -> bool {
     let i = format!("_{index:04x}");
     name.ends_with(&i) || sub.is_some_and(|s| name.ends_with(&format!("{i}_{s}"))) || name.contains(&format!("{i}_"))
@@ -107,12 +114,19 @@ fn corpus_names_are_short_plain_and_rarely_suffixed() {
                     && !w[0].bytes().all(|b| b.is_ascii_digit())
                     && (sub.is_none() || w[0] != last)
             });
-            if n.starts_with("x1st")
-                || n.starts_with("x2nd")
-                || n.contains("_i_ds")
-                || n.starts_with("i_ds")
-                || repeated
-            {
+            // A mixed-case field word of the entry's or its object's name (`CANopen`) is one word.
+            let obj = parsed.model.objects.values().find(|o| o.index.0 == index);
+            let source: Vec<&str> = obj
+                .map(|o| {
+                    let e = sub.and_then(|s| o.subs.values().find(|e| e.sub.0 == s));
+                    [Some(o.name.as_str()), e.map(|e| e.name.as_str())].into_iter().flatten().collect()
+                })
+                .unwrap_or_default();
+            let split_field_word = od_codegen::ident::FIELD_WORDS.iter().any(|w| {
+                source.iter().any(|t| t.split(|c: char| !c.is_ascii_alphanumeric()).any(|x| x == *w))
+                    && !words.contains(&w.to_ascii_lowercase().as_str())
+            });
+            if starts_with_number(&n) || split_field_word || n.contains("_i_ds") || n.starts_with("i_ds") || repeated {
                 bad.push(format!("{name}: {n}"));
             }
         }

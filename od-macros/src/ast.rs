@@ -340,93 +340,14 @@ fn parse_item(cur: &mut Cur<'_>, cx: &mut Ctxt) -> Option<Item> {
     };
     let kw_loc = Loc::of(kw.span());
     let item = match kw.to_string().as_str() {
-        "mod" => {
-            let name = match cur.next() {
-                Some(TokenTree::Ident(i)) => i.clone(),
-                _ => {
-                    cx.error(kw_loc, "expected a module name: `mod name;`");
-                    return None;
-                }
-            };
-            Item::Module { name }
-        }
+        "mod" => parse_module(cur, kw_loc, cx)?,
         "strict" => Item::Strict(kw_loc),
-        "device" => {
-            let body = match cur.next() {
-                Some(TokenTree::Group(g)) if g.delimiter() == Delimiter::Brace => g.clone(),
-                _ => {
-                    cx.error(kw_loc, "expected `{ key = value, … }` after `device`");
-                    return None;
-                }
-            };
-            let props = parse_props(body.stream(), Loc::of(body.span()), cx);
-            Item::Device { kw: kw_loc, props }
-        }
-        "var" | "array" | "record" => {
-            let kind = match kw.to_string().as_str() {
-                "var" => ObjKind::Var,
-                "array" => ObjKind::Array,
-                _ => ObjKind::Record,
-            };
-            let index = parse_num(cur, cx, "an object index such as `0x2000`")?;
-            let name = parse_name(cur, cx)?;
-            let body = match cur.toks.last() {
-                Some(TokenTree::Group(g)) if g.delimiter() == Delimiter::Brace && kind != ObjKind::Var => {
-                    Some(g.clone())
-                }
-                _ => None,
-            };
-            let props_end = cur.toks.len() - body.is_some() as usize;
-            let (spec, props) = if kind == ObjKind::Record {
-                if cur.pos < props_end {
-                    let t = &cur.toks[cur.pos];
-                    cx.error(
-                        Loc::of(t.span()),
-                        format!(
-                            "expected `{{` after the record's name, found {}; a record's sub-objects each have their own type and access",
-                            describe_token(t)
-                        ),
-                    );
-                    return None;
-                }
-                (None, Vec::new())
-            } else {
-                if cur.punct(':').is_none() {
-                    cx.error(cur.here(), "expected `:` and then the data type and access, as in `: u16, rw`");
-                    return None;
-                }
-                let spec_tokens: TokenStream = cur.toks[cur.pos..props_end].iter().cloned().collect();
-                let (spec, props) = parse_spec(spec_tokens, cur.here(), cx)?;
-                (Some(spec), props)
-            };
-            let body = match body {
-                Some(g) => Some(parse_body(g.stream(), kind, Loc::of(g.span()), cx)),
-                None if kind == ObjKind::Record => {
-                    cx.error(Loc::of(name.loc.end), "expected `{ … }` with the record's sub-objects");
-                    return None;
-                }
-                None => None,
-            };
-            cur.pos = cur.toks.len();
-            let loc = start.to(Loc::of_tokens(cur.toks, start));
-            Item::Object(ObjectDecl { kind, index, name, spec, props, body, loc })
-        }
-        "rpdo" | "tpdo" => {
-            let rx = kw == "rpdo";
-            let number = parse_num(cur, cx, "a PDO number (1 for the first PDO)")?;
-            let props = if cur.is_empty() {
-                Vec::new()
-            } else if cur.punct(':').is_some() {
-                let rest: TokenStream = cur.rest().iter().cloned().collect();
-                cur.pos = cur.toks.len();
-                parse_props(rest, cur.whole, cx)
-            } else {
-                cx.error(cur.here(), "expected `:` and then the PDO's properties, as in `: map = [0x6040]`");
-                return None;
-            };
-            let loc = start.to(Loc::of_tokens(cur.toks, start));
-            Item::Pdo(PdoDecl { rx, number, props, loc })
-        }
+        "device" => parse_device(cur, kw_loc, cx)?,
+        "var" => parse_object(cur, ObjKind::Var, start, cx)?,
+        "array" => parse_object(cur, ObjKind::Array, start, cx)?,
+        "record" => parse_object(cur, ObjKind::Record, start, cx)?,
+        "rpdo" => parse_pdo(cur, true, start, cx)?,
+        "tpdo" => parse_pdo(cur, false, start, cx)?,
         _ => {
             cx.error(kw_loc, format!("expected an item ({ITEMS}), found `{kw}`"));
             return None;
@@ -437,6 +358,106 @@ fn parse_item(cur: &mut Cur<'_>, cx: &mut Ctxt) -> Option<Item> {
         return None;
     }
     Some(item)
+}
+
+/// `mod name;` after its keyword (at `kw`).
+fn parse_module(cur: &mut Cur<'_>, kw: Loc, cx: &mut Ctxt) -> Option<Item> {
+    let name = match cur.next() {
+        Some(TokenTree::Ident(i)) => i.clone(),
+        _ => {
+            cx.error(kw, "expected a module name: `mod name;`");
+            return None;
+        }
+    };
+    Some(Item::Module { name })
+}
+
+/// `device { key = value, … }` after its keyword (at `kw`).
+fn parse_device(cur: &mut Cur<'_>, kw: Loc, cx: &mut Ctxt) -> Option<Item> {
+    let body = match cur.next() {
+        Some(TokenTree::Group(g)) if g.delimiter() == Delimiter::Brace => g.clone(),
+        _ => {
+            cx.error(kw, "expected `{ key = value, … }` after `device`");
+            return None;
+        }
+    };
+    let props = parse_props(body.stream(), Loc::of(body.span()), cx);
+    Some(Item::Device { kw, props })
+}
+
+/// A `var`, `array` or `record` object after its keyword: index, name, then the type, access
+/// and properties (not for a record) and the sub-objects in braces (not for a var). The item
+/// started at `start`.
+fn parse_object(cur: &mut Cur<'_>, kind: ObjKind, start: Loc, cx: &mut Ctxt) -> Option<Item> {
+    let index = parse_num(cur, cx, "an object index such as `0x2000`")?;
+    let name = parse_name(cur, cx)?;
+    let body = match cur.toks.last() {
+        Some(TokenTree::Group(g)) if g.delimiter() == Delimiter::Brace && kind != ObjKind::Var => Some(g.clone()),
+        _ => None,
+    };
+    let props_end = cur.toks.len() - body.is_some() as usize;
+    let (spec, props) = if kind == ObjKind::Record {
+        record_head_ends(cur, props_end, cx)?;
+        (None, Vec::new())
+    } else {
+        let (spec, props) = parse_object_spec(cur, props_end, cx)?;
+        (Some(spec), props)
+    };
+    let body = match body {
+        Some(g) => Some(parse_body(g.stream(), kind, Loc::of(g.span()), cx)),
+        None if kind == ObjKind::Record => {
+            cx.error(Loc::of(name.loc.end), "expected `{ … }` with the record's sub-objects");
+            return None;
+        }
+        None => None,
+    };
+    cur.pos = cur.toks.len();
+    let loc = start.to(Loc::of_tokens(cur.toks, start));
+    Some(Item::Object(ObjectDecl { kind, index, name, spec, props, body, loc }))
+}
+
+/// A record's name is followed by its braces and nothing else (its sub-objects have the types).
+fn record_head_ends(cur: &Cur<'_>, props_end: usize, cx: &mut Ctxt) -> Option<()> {
+    if cur.pos < props_end {
+        let t = &cur.toks[cur.pos];
+        cx.error(
+            Loc::of(t.span()),
+            format!(
+                "expected `{{` after the record's name, found {}; a record's sub-objects each have their own type and access",
+                describe_token(t)
+            ),
+        );
+        return None;
+    }
+    Some(())
+}
+
+/// `: type, access, props…` of a var or array, up to `props_end` (its braces, if any).
+fn parse_object_spec(cur: &mut Cur<'_>, props_end: usize, cx: &mut Ctxt) -> Option<(Spec, Vec<Prop>)> {
+    if cur.punct(':').is_none() {
+        cx.error(cur.here(), "expected `:` and then the data type and access, as in `: u16, rw`");
+        return None;
+    }
+    let spec_tokens: TokenStream = cur.toks[cur.pos..props_end].iter().cloned().collect();
+    parse_spec(spec_tokens, cur.here(), cx)
+}
+
+/// `rpdo N: props…` / `tpdo N: props…` after its keyword (`rx`: an RPDO); the item started at
+/// `start`.
+fn parse_pdo(cur: &mut Cur<'_>, rx: bool, start: Loc, cx: &mut Ctxt) -> Option<Item> {
+    let number = parse_num(cur, cx, "a PDO number (1 for the first PDO)")?;
+    let props = if cur.is_empty() {
+        Vec::new()
+    } else if cur.punct(':').is_some() {
+        let rest: TokenStream = cur.rest().iter().cloned().collect();
+        cur.pos = cur.toks.len();
+        parse_props(rest, cur.whole, cx)
+    } else {
+        cx.error(cur.here(), "expected `:` and then the PDO's properties, as in `: map = [0x6040]`");
+        return None;
+    };
+    let loc = start.to(Loc::of_tokens(cur.toks, start));
+    Some(Item::Pdo(PdoDecl { rx, number, props, loc }))
 }
 
 fn parse_num(cur: &mut Cur<'_>, cx: &mut Ctxt, what: &str) -> Option<Num> {

@@ -51,6 +51,14 @@ const NAMES: &[&str] = &[
     "x",
     "set_",
     "Über",
+    "1. Receive PDO parameter",
+    "1rst receive PDO communication parameter",
+    "3) Mode",
+    "5V DC supply",
+    "8-Bit analog Input 1",
+    "2eme",
+    "CANopen baudrate",
+    "EtherCAT IOs",
 ];
 
 const TYPES: &[D] = &[
