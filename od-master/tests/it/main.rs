@@ -2,6 +2,7 @@
 //! time, against hand-written faulty SDO servers, and over the socketcand hub on TCP.
 
 mod axis;
+mod cli;
 mod events;
 mod faults;
 mod harness;
