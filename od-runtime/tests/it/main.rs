@@ -5,8 +5,8 @@
 mod can;
 mod cia402;
 mod common;
-mod master;
 mod handles;
+mod master;
 mod nmt;
 mod pdo;
 mod props;
