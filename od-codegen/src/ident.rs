@@ -234,7 +234,7 @@ fn field_word_at(chars: &[char], i: usize) -> Option<&'static str> {
 /// `wont`), a run of capitals with a plural `s` is one word (`COB-IDs` → `cob`, `ids`), a
 /// single lower-case letter before a capital is its prefix, not a word (`mA` → `ma`, `kHz` →
 /// `khz`), the field's mixed-case words stay whole ([`FIELD_WORDS`]: `CANopen` → `canopen`),
-/// and leading numbers move behind the other words ([`move_leading_numbers`]: `1st receive PDO
+/// and leading numbers move behind the other words (`move_leading_numbers`: `1st receive PDO
 /// parameter` → `receive`, `pdo`, `parameter`, `1`), so no word list starts with a digit.
 pub fn words(name: &str) -> Vec<String> {
     let mut chars: Vec<char> = Vec::with_capacity(name.len());
