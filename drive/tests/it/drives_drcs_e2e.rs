@@ -4,57 +4,23 @@
 //! drive reports: homing 17, an absolute and a relative move in millimetres, the unit changed
 //! to micrometres and to inches (chapter 4, 3.6.1); and `--trace`/`--plot` recording the DRCS.
 
-use std::io::{BufRead, BufReader};
-use std::net::SocketAddr;
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use generated::drcs::Dictionary;
 use generated::drcs::units::{Dimension, Quantity, Ratio, Unit, Units};
 use od_bus::{CanFrame, Endpoint, SocketcandClient};
 
+use crate::drive_sim::DriveSim;
+
 const ID: u8 = 3;
 const WAIT: Duration = Duration::from_secs(5);
 
-struct DriveSim {
-    child: Child,
-    addr: SocketAddr,
-}
-
-impl DriveSim {
-    fn start(extra: &[&str]) -> Self {
-        let mut args = vec!["run", "--device", "drcs", "--node-id", "3", "--listen", "127.0.0.1:0"];
-        args.extend_from_slice(extra);
-        let mut child = Command::new(env!("CARGO_BIN_EXE_drive-sim"))
-            .args(&args)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("start drive-sim");
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).expect("read the first line");
-        let addr = line.trim().strip_prefix("listening on ").unwrap_or_else(|| panic!("first line {line:?}"));
-        Self { addr: addr.parse().unwrap(), child }
-    }
-
-    /// Stops the process with SIGTERM (so it writes its trace) and waits for it.
-    fn terminate(mut self) {
-        let status = Command::new("kill").args(["-TERM", &self.child.id().to_string()]).status().unwrap();
-        assert!(status.success());
-        let deadline = Instant::now() + WAIT;
-        while self.child.try_wait().unwrap().is_none() {
-            assert!(Instant::now() < deadline, "drive-sim did not stop after SIGTERM");
-            std::thread::sleep(Duration::from_millis(20));
-        }
-    }
-}
-
-impl Drop for DriveSim {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
+/// A DRCS as node 3 on a hub of its own, with `extra` arguments.
+fn start_drcs(extra: &[&str]) -> DriveSim {
+    let mut args = vec!["run", "--device", "drcs", "--node-id", "3", "--listen", "127.0.0.1:0"];
+    args.extend_from_slice(extra);
+    DriveSim::start(&args)
 }
 
 /// A master with expedited SDO over the socketcand client.
@@ -157,7 +123,7 @@ fn mm(n: i128, d: i128) -> Quantity {
 
 #[test]
 fn moves_in_millimetres_through_the_generated_units_over_the_hub() {
-    let sim = DriveSim::start(&[]);
+    let sim = start_drcs(&[]);
     let mut m = Master::connect(&sim);
     m.enable_and_home_17();
     assert_eq!(m.units().unit(Dimension::Position), Some(Unit::Millimeter));
@@ -199,14 +165,8 @@ fn drive_sim_traces_and_plots_the_drcs() {
     let dir = std::env::temp_dir().join(format!("drcs-trace-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let (csv, svg) = (dir.join("drcs.csv"), dir.join("drcs.svg"));
-    let sim = DriveSim::start(&[
-        "--trace",
-        csv.to_str().unwrap(),
-        "--plot",
-        svg.to_str().unwrap(),
-        "--trace-interval-ms",
-        "10",
-    ]);
+    let sim =
+        start_drcs(&["--trace", csv.to_str().unwrap(), "--plot", svg.to_str().unwrap(), "--trace-interval-ms", "10"]);
     let mut m = Master::connect(&sim);
     m.enable_and_home_17();
     m.write(0x6081, 0, 200, 4);
@@ -214,7 +174,7 @@ fn drive_sim_traces_and_plots_the_drcs() {
     m.write(0x6084, 0, 1000, 4);
     m.move_mm(mm(100, 1), false);
     drop(m);
-    sim.terminate();
+    let _ = sim.stop();
     let text = std::fs::read_to_string(&csv).unwrap();
     let trace = drive::trace::Trace::from_csv(&text).unwrap();
     let samples = trace.samples();
@@ -239,7 +199,7 @@ fn a_kill_during_save_never_leaves_a_torn_parameter_set() {
     let state = dir.to_str().unwrap().to_owned();
     let args = ["--state-dir", state.as_str()];
     // A first complete save: generation 1.
-    let sim = DriveSim::start(&args);
+    let sim = start_drcs(&args);
     let mut m = Master::connect(&sim);
     let write_generation = |m: &mut Master, g: i64| {
         m.write(0x2001, 1, g, 4); // manufacturer area
@@ -261,7 +221,7 @@ fn a_kill_during_save_never_leaves_a_torn_parameter_set() {
     // start must find the new set (and the test has completed saves however loaded the machine).
     let mut confirmed = false;
     for round in 0..40u64 {
-        let sim = DriveSim::start(&args);
+        let sim = start_drcs(&args);
         let mut m = Master::connect(&sim);
         // What the last round left: per area, one whole generation (the old or the new one).
         let found = [

@@ -3,80 +3,18 @@
 //! the `demo` subcommand (the main job), 1010h saves that survive a SIGKILL at any moment, and
 //! moves in physical units through the generated units module.
 
-use std::io::{BufRead, BufReader, Read};
-use std::net::SocketAddr;
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 use drive::trace::Trace;
 use generated::drvi::Dictionary;
 use generated::drvi::units::{Dimension, Quantity, Ratio, Unit, Units};
 use od_bus::{CanFrame, Endpoint, SocketcandClient};
+
+use crate::drive_sim::{DriveSim, next_with_id};
 use od_runtime::od::ObjectDictionary;
 
 const WAIT: Duration = Duration::from_secs(10);
-
-struct DriveSim {
-    child: Child,
-    addr: SocketAddr,
-}
-
-impl DriveSim {
-    fn start(args: &[&str]) -> Self {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_drive-sim"))
-            .args(args)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("start drive-sim");
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).expect("read the first line");
-        let addr = line.trim().strip_prefix("listening on ").unwrap_or_else(|| panic!("first line {line:?}"));
-        Self { addr: addr.parse().unwrap(), child }
-    }
-
-    /// SIGTERM, then waits (bounded); returns whether it exited with 0 and its stderr.
-    fn stop(mut self) -> (bool, String) {
-        let pid = libc::pid_t::try_from(self.child.id()).unwrap();
-        // SAFETY: sending a signal to our own child process.
-        assert_eq!(unsafe { libc::kill(pid, libc::SIGTERM) }, 0);
-        let deadline = Instant::now() + WAIT;
-        let status = loop {
-            if let Some(status) = self.child.try_wait().unwrap() {
-                break status;
-            }
-            assert!(Instant::now() < deadline, "drive-sim did not stop");
-            std::thread::sleep(Duration::from_millis(10));
-        };
-        let mut text = String::new();
-        if let Some(mut e) = self.child.stderr.take() {
-            e.read_to_string(&mut text).unwrap();
-        }
-        (status.success(), text)
-    }
-}
-
-impl Drop for DriveSim {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-fn next_with_id(bus: &mut SocketcandClient, id: u32, within: Duration) -> Option<CanFrame> {
-    let deadline = Instant::now() + within;
-    loop {
-        let left = deadline.saturating_duration_since(Instant::now());
-        if left.is_zero() {
-            return None;
-        }
-        match bus.recv_timeout(left).unwrap() {
-            Some(f) if f.id() == id => return Some(f),
-            Some(_) => continue,
-            None => return None,
-        }
-    }
-}
 
 fn sdo(bus: &mut SocketcandClient, data: [u8; 8]) -> [u8; 8] {
     bus.send(CanFrame::standard(0x602, &data).unwrap()).unwrap();

@@ -2,57 +2,13 @@
 //! socketcand protocol sending remote frames (`sendrtr`, which python-can's socketcand
 //! interface cannot express) through the transport's own client.
 
-use std::io::{BufRead, BufReader};
-use std::net::SocketAddr;
-use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use od_bus::{CanFrame, Endpoint, SocketcandClient};
 
+use crate::drive_sim::{DriveSim, next_with_id};
+
 const WAIT: Duration = Duration::from_secs(5);
-
-struct DriveSim {
-    child: Child,
-    addr: SocketAddr,
-}
-
-impl DriveSim {
-    fn start(args: &[&str]) -> Self {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_drive-sim"))
-            .args(args)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("start drive-sim");
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).expect("read the first line");
-        let addr = line.trim().strip_prefix("listening on ").unwrap_or_else(|| panic!("first line {line:?}"));
-        Self { addr: addr.parse().unwrap(), child }
-    }
-}
-
-impl Drop for DriveSim {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-/// The next frame with id `id`, skipping others; `None` if none arrives within `within`.
-fn next_with_id(bus: &mut SocketcandClient, id: u32, within: Duration) -> Option<CanFrame> {
-    let deadline = Instant::now() + within;
-    loop {
-        let left = deadline.saturating_duration_since(Instant::now());
-        if left.is_zero() {
-            return None;
-        }
-        match bus.recv_timeout(left).unwrap() {
-            Some(f) if f.id() == id => return Some(f),
-            Some(_) => continue,
-            None => return None,
-        }
-    }
-}
 
 /// Sends a guard request and returns the reply. A boot-up message (one byte 0x00, same CAN-ID)
 /// may still be on its way when a test starts, since the device boots while the client connects:

@@ -1,6 +1,7 @@
 //! The integration tests of `drive`, one module per former test file, linked into one
 //! binary: `cargo test -p drive --test it` runs them all, `... --test it -- MODULE::` one module.
 
+mod drive_sim;
 mod drives_akd;
 mod drives_akd_e2e;
 mod drives_common;
