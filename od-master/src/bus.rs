@@ -552,6 +552,7 @@ impl Task {
 /// Starts `request` on `client`, with the request's timeout.
 fn start(client: &mut SdoClient<Vec<u8>>, request: &SdoRequest, now: Micros) -> Result<(), Error> {
     client.set_timeout(micros(request.options.timeout));
+    client.set_block_fallback(request.options.block_fallback);
     let (node, index, sub) = (request.node.get(), request.index, request.sub);
     let started = match &request.op {
         Op::Upload(capacity) => client.upload(index, sub, vec![0; *capacity], request.options.mode, now),

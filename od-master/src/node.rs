@@ -22,6 +22,11 @@ pub struct SdoOptions {
     pub retries: u8,
     /// Expedited/segmented (default), always segmented, or block transfer.
     pub mode: Mode,
+    /// A block transfer to a server that does not do them runs as a normal one (default on):
+    /// the block request refused with 0504 0001h is sent again as a normal one, and a normal
+    /// upload answer to a block upload (python-canopen's `LocalNode`) is followed. Off, both
+    /// fail with the 0504 0001h abort (see `od_runtime::master::SdoClient::set_block_fallback`).
+    pub block_fallback: bool,
     /// The largest value a read accepts (default 4 KiB); a longer one aborts the transfer
     /// with "out of memory".
     pub max_len: usize,
@@ -29,7 +34,7 @@ pub struct SdoOptions {
 
 impl Default for SdoOptions {
     fn default() -> Self {
-        Self { timeout: Duration::from_secs(1), retries: 2, mode: Mode::Normal, max_len: 4096 }
+        Self { timeout: Duration::from_secs(1), retries: 2, mode: Mode::Normal, block_fallback: true, max_len: 4096 }
     }
 }
 

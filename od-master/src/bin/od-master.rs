@@ -41,7 +41,8 @@ struct Args {
     /// How long to wait for each SDO answer, in milliseconds.
     #[arg(long, global = true, default_value_t = 1000, value_name = "MS")]
     timeout: u64,
-    /// SDO transfer mode for read and write: normal (expedited or segmented), segmented, block.
+    /// SDO transfer mode for read and write: normal (expedited or segmented), segmented, block
+    /// (with a server that has no block transfer, the same transfer runs as a normal one).
     #[arg(long, global = true, default_value = "normal", value_parser = ["normal", "segmented", "block"])]
     sdo_mode: String,
     /// The largest value a read accepts, in bytes.
@@ -239,7 +240,13 @@ async fn run(args: Args) -> Result<(), Fail> {
         "block" => od_master::Mode::Block,
         _ => od_master::Mode::Normal,
     };
-    let sdo = SdoOptions { timeout: Duration::from_millis(args.timeout), retries: 0, mode, max_len: args.max_len };
+    let sdo = SdoOptions {
+        timeout: Duration::from_millis(args.timeout),
+        retries: 0,
+        mode,
+        max_len: args.max_len,
+        ..SdoOptions::default()
+    };
     let config = Config { sdo, ..Config::default() };
     let bus = Bus::open(&addr, config).await.map_err(|e| usage(format!("cannot open the bus {addr}: {e}")))?;
     let fail = |e: od_master::Error| Fail(1, e.to_string());

@@ -23,6 +23,16 @@
 //! The client never retries. Retrying is the caller's decision (a read can be repeated, a
 //! write only when the object is idempotent), and a retry is a new transfer from the start.
 //!
+//! A server that does not do block transfers (CiA 301 lets a server leave them out) is met
+//! with a fallback, on by default ([`SdoClient::set_block_fallback`]): a block transfer whose
+//! initiate request the server refuses with abort 0504 0001h (command specifier not valid or
+//! unknown) for the transfer's object starts again as a normal transfer, and a normal initiate
+//! upload response that indicates the size, to a block upload request (what python-canopen's
+//! `LocalNode` sends, whatever the protocol switch threshold), continues as that normal upload. Nothing of the
+//! object moved before either answer, so the value read or written is the same; with the
+//! fallback off, both end the transfer as CiA 301 says (the abort; a client abort with
+//! 0504 0001h).
+//!
 //! Frames on the client's receive COB-ID that are not 8 bytes long, remote frames, and
 //! initiate responses naming another object than the transfer's (a late answer to an earlier,
 //! timed-out transfer) are ignored. Any other frame that is not the answer expected at that
@@ -254,6 +264,8 @@ pub struct SdoClient<B> {
     timeout: Micros,
     blksize: u8,
     pst: u8,
+    /// Block transfers fall back to normal ones with a server that has none.
+    fallback: bool,
     state: State,
     direction: Direction,
     index: u16,
@@ -301,6 +313,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
             timeout: DEFAULT_TIMEOUT,
             blksize: MAX_BLOCK_SIZE,
             pst: 0,
+            fallback: true,
             state: State::Idle,
             direction: Direction::Upload,
             index: 0,
@@ -350,6 +363,22 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
     /// default) forbids the switch.
     pub fn set_protocol_switch_threshold(&mut self, bytes: u8) {
         self.pst = bytes;
+    }
+
+    /// Sets whether a block transfer falls back to a normal one with a server that does not do
+    /// block transfers (default on; see the [module documentation](self)): the block initiate
+    /// request refused with 0504 0001h starts the transfer again as a normal one, and a
+    /// normal initiate upload response indicating the size, to a block upload, continues as a
+    /// normal upload. Off,
+    /// the refusal ends the transfer with [`SdoError::Server`] and a normal answer above the
+    /// protocol switch threshold with [`SdoError::Client`] 0504 0001h.
+    pub fn set_block_fallback(&mut self, on: bool) {
+        self.fallback = on;
+    }
+
+    /// Whether block transfers fall back to normal ones ([`set_block_fallback`](Self::set_block_fallback)).
+    pub const fn block_fallback(&self) -> bool {
+        self.fallback
     }
 
     /// Whether no transfer is running (a new one may start).
@@ -410,6 +439,13 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
     /// the data is longer than 4 GiB.
     pub fn download(&mut self, index: u16, sub: u8, data: B, mode: Mode, now: Micros) -> Result<(), Rejected<B>> {
         self.start(Direction::Download, index, sub, data, now)?;
+        self.initiate_download(mode);
+        Ok(())
+    }
+
+    /// Queues the initiate request of a download of the whole buffer.
+    fn initiate_download(&mut self, mode: Mode) {
+        let (index, sub) = (self.index, self.sub);
         let len = self.len();
         let size = (len as u32).to_le_bytes();
         match mode {
@@ -428,7 +464,6 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
                 self.state = State::BlockDownInit;
             }
         }
-        Ok(())
     }
 
     /// Ends the running transfer with `code`: the abort frame goes out with the next poll and
@@ -484,6 +519,19 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
         // no valid segment has it, so it is the abort there too.
         if d[0] == 0x80 {
             let code = AbortCode(u32::from_le_bytes([d[4], d[5], d[6], d[7]]));
+            let block_init = matches!(self.state, State::BlockUpInit | State::BlockDownInit);
+            if block_init && self.fallback && code == AbortCode::INVALID_COMMAND && mux_of(&d) == (self.index, self.sub)
+            {
+                // The server has no block transfer: the same transfer as a normal one.
+                self.deadline = now.saturating_add(self.timeout);
+                if self.state == State::BlockUpInit {
+                    self.push(request(0x40, self.index, self.sub, [0; 4]));
+                    self.state = State::UpInit;
+                } else {
+                    self.initiate_download(Mode::Normal);
+                }
+                return None;
+            }
             return Some(self.finish(Err(SdoError::Server(code))));
         }
         let initiate =
@@ -603,6 +651,13 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
             State::BlockUpInit => {
                 if cmd >> 5 == 2 && self.pst != 0 {
                     // Protocol switch: the server answered with a normal upload.
+                    return self.initiate_upload_response(d);
+                }
+                if cmd >> 5 == 2 && self.fallback && cmd & 0x01 != 0 {
+                    // A server without block upload answered with a normal upload. Only one
+                    // that indicates its size (s = 1, as such servers do): it is two bits away
+                    // from every block answer (ss = 0), so a block answer with one bit
+                    // garbled is not taken for it.
                     return self.initiate_upload_response(d);
                 }
                 if cmd & 0xF9 != 0xC0 {

@@ -268,12 +268,151 @@ fn block_upload_protocol_switch() {
     expect(&mut c, &["601 A4 00 10 00 7F 04 00 00"]);
     let d = reply(&mut c, "581 43 00 10 00 92 01 02 00").unwrap();
     assert_eq!(value(&d), &[0x92, 1, 2, 0]);
-    // Without a threshold, a normal answer to a block request is a protocol error.
+    // Without a threshold and without the fallback, a normal answer to a block request is a
+    // protocol error.
     c.set_protocol_switch_threshold(0);
+    c.set_block_fallback(false);
+    assert!(!c.block_fallback());
     c.upload(0x1000, 0, vec![0; 8], Mode::Block, 0).unwrap();
     sent(&mut c, 0);
     let d = reply(&mut c, "581 43 00 10 00 92 01 02 00").unwrap();
     assert_eq!(d.result, Err(SdoError::Client(AbortCode::INVALID_COMMAND)));
+    expect(&mut c, &["601 80 00 10 00 01 00 04 05"]);
+}
+
+// A server without block transfers (python-canopen's LocalNode answers a block upload with a
+// normal initiate upload response whatever the threshold, and aborts a block download with
+// 0504 0001h).
+
+#[test]
+fn block_upload_answered_with_a_segmented_upload_continues_segmented() {
+    let mut c = Client::new(node(1));
+    assert!(c.block_fallback(), "the fallback is on by default");
+    c.upload(0x2003, 0, vec![0; 16], Mode::Block, 0).unwrap();
+    expect(&mut c, &["601 A4 03 20 00 7F 00 00 00"]);
+    // Segmented, 10 bytes indicated.
+    assert!(reply(&mut c, "581 41 03 20 00 0A 00 00 00").is_none());
+    expect(&mut c, &["601 60 00 00 00 00 00 00 00"]);
+    assert!(reply(&mut c, "581 00 01 02 03 04 05 06 07").is_none());
+    expect(&mut c, &["601 70 00 00 00 00 00 00 00"]);
+    let d = reply(&mut c, "581 19 08 09 0A 00 00 00 00").unwrap();
+    assert_eq!(value(&d), (1..=10).collect::<Vec<u8>>());
+    expect(&mut c, &[]);
+    // Expedited.
+    c.upload(0x1000, 0, vec![0; 8], Mode::Block, 0).unwrap();
+    sent(&mut c, 0);
+    let d = reply(&mut c, "581 43 00 10 00 92 01 02 00").unwrap();
+    assert_eq!(value(&d), [0x92, 1, 2, 0]);
+    // The size check of the normal upload holds: more than indicated aborts.
+    c.upload(0x2003, 0, vec![0; 16], Mode::Block, 0).unwrap();
+    sent(&mut c, 0);
+    reply(&mut c, "581 41 03 20 00 03 00 00 00");
+    sent(&mut c, 0);
+    let d = reply(&mut c, "581 01 01 02 03 04 05 06 07").unwrap();
+    assert_eq!(d.result, Err(SdoError::Client(AbortCode::LENGTH_MISMATCH)));
+    expect(&mut c, &["601 80 03 20 00 10 00 07 06"]);
+    // A normal answer that does not indicate its size is what a block answer with bit 7
+    // garbled looks like (C6h -> 46h: "expedited, 4 bytes" with the size as the value): the
+    // fallback does not take it.
+    for garbled in ["581 46 03 20 00 0A 00 00 00", "581 42 03 20 00 0A 00 00 00", "581 40 03 20 00 00 00 00 00"] {
+        c.upload(0x2003, 0, vec![0; 16], Mode::Block, 0).unwrap();
+        sent(&mut c, 0);
+        let d = reply(&mut c, garbled).unwrap();
+        assert_eq!(d.result, Err(SdoError::Client(AbortCode::INVALID_COMMAND)), "{garbled}");
+        expect(&mut c, &["601 80 03 20 00 01 00 04 05"]);
+    }
+    // An answer about another object is still not this transfer's.
+    c.upload(0x2003, 0, vec![0; 16], Mode::Block, 0).unwrap();
+    sent(&mut c, 0);
+    assert!(reply(&mut c, "581 41 08 10 00 0A 00 00 00").is_none());
+    expect(&mut c, &[]);
+}
+
+#[test]
+fn block_transfer_refused_with_0504_0001_starts_again_normal() {
+    let mut c = Client::new(node(1));
+    // Upload: the same object requested again, normal.
+    c.upload(0x2003, 0, vec![0; 16], Mode::Block, 0).unwrap();
+    expect(&mut c, &["601 A4 03 20 00 7F 00 00 00"]);
+    assert!(reply(&mut c, "581 80 03 20 00 01 00 04 05").is_none());
+    expect(&mut c, &["601 40 03 20 00 00 00 00 00"]);
+    let d = reply(&mut c, "581 4B 03 20 00 34 12 00 00").unwrap();
+    assert_eq!(value(&d), [0x34, 0x12]);
+    // Download of 9 bytes: segmented.
+    let data: Vec<u8> = (1..=9).collect();
+    c.download(0x2003, 0, data, Mode::Block, 0).unwrap();
+    expect(&mut c, &["601 C6 03 20 00 09 00 00 00"]);
+    assert!(reply(&mut c, "581 80 03 20 00 01 00 04 05").is_none());
+    expect(&mut c, &["601 21 03 20 00 09 00 00 00"]);
+    reply(&mut c, "581 60 03 20 00 00 00 00 00");
+    expect(&mut c, &["601 00 01 02 03 04 05 06 07"]);
+    reply(&mut c, "581 20 00 00 00 00 00 00 00");
+    expect(&mut c, &["601 1B 08 09 00 00 00 00 00"]);
+    let d = reply(&mut c, "581 30 00 00 00 00 00 00 00").unwrap();
+    assert_eq!(d.result, Ok(9));
+    // Download of 2 bytes: expedited.
+    c.download(0x6040, 0, vec![0x0F, 0x00], Mode::Block, 0).unwrap();
+    expect(&mut c, &["601 C6 40 60 00 02 00 00 00"]);
+    reply(&mut c, "581 80 40 60 00 01 00 04 05");
+    expect(&mut c, &["601 2B 40 60 00 0F 00 00 00"]);
+    let d = reply(&mut c, "581 60 40 60 00 00 00 00 00").unwrap();
+    assert_eq!(d.result, Ok(2));
+    // The timeout runs from the refusal: the restarted transfer has its own full timeout.
+    c.set_timeout(1000);
+    c.upload(0x2003, 0, vec![0; 16], Mode::Block, 0).unwrap();
+    sent(&mut c, 0);
+    c.on_frame(&frame("581 80 03 20 00 01 00 04 05"), 900);
+    assert_eq!(sent(&mut c, 900), ["601 40 03 20 00 00 00 00 00"]);
+    assert_eq!(c.deadline(), Some(1900));
+    c.abort(AbortCode::GENERAL_ERROR).unwrap();
+    sent(&mut c, 900);
+}
+
+#[test]
+fn block_refusals_that_are_no_fallback() {
+    let mut c = Client::new(node(1));
+    let abort = |code: &str| format!("581 80 03 20 00 {code}");
+    for (upload, fallback, answer, why) in [
+        // Another abort code is the server's answer about the object.
+        (true, true, abort("00 00 02 06"), "another code"),
+        (false, true, abort("00 00 02 06"), "another code"),
+        // 0504 0001h about another object is no refusal of this transfer.
+        (true, true, "581 80 08 10 00 01 00 04 05".to_owned(), "another object"),
+        (false, true, "581 80 08 10 00 01 00 04 05".to_owned(), "another object"),
+        // With the fallback off, the refusal ends the transfer.
+        (true, false, abort("01 00 04 05"), "fallback off"),
+        (false, false, abort("01 00 04 05"), "fallback off"),
+    ] {
+        c.set_block_fallback(fallback);
+        if upload {
+            c.upload(0x2003, 0, vec![0; 16], Mode::Block, 0).unwrap();
+        } else {
+            c.download(0x2003, 0, vec![1; 9], Mode::Block, 0).unwrap();
+        }
+        sent(&mut c, 0);
+        let d = reply(&mut c, &answer).unwrap_or_else(|| panic!("{why}: the transfer goes on"));
+        let code = AbortCode(
+            u32::from_str_radix(&answer[answer.len() - 11..].split(' ').rev().collect::<String>(), 16).unwrap(),
+        );
+        assert_eq!(d.result, Err(SdoError::Server(code)), "{why}");
+        expect(&mut c, &[]);
+    }
+    // Past the initiate, 0504 0001h is an abort like any other: a block under way is not
+    // started again.
+    c.set_block_fallback(true);
+    c.upload(0x2003, 0, vec![0; 64], Mode::Block, 0).unwrap();
+    sent(&mut c, 0);
+    reply(&mut c, "581 C4 03 20 00 00 00 00 00");
+    sent(&mut c, 0);
+    let d = reply(&mut c, "581 80 03 20 00 01 00 04 05").unwrap();
+    assert_eq!(d.result, Err(SdoError::Server(AbortCode::INVALID_COMMAND)));
+    c.download(0x2003, 0, vec![1; 9], Mode::Block, 0).unwrap();
+    sent(&mut c, 0);
+    reply(&mut c, "581 A4 03 20 00 7F 00 00 00");
+    sent(&mut c, 0);
+    let d = reply(&mut c, "581 80 03 20 00 01 00 04 05").unwrap();
+    assert_eq!(d.result, Err(SdoError::Server(AbortCode::INVALID_COMMAND)));
+    expect(&mut c, &[]);
 }
 
 #[test]
@@ -949,6 +1088,116 @@ proptest! {
         }
         prop_assert!(ended <= 1);
         prop_assert_eq!(ended == 1, c.is_idle());
+    }
+}
+
+/// How a server without block transfers answers a block initiate request.
+#[derive(Clone, Copy, Debug)]
+enum NoBlock {
+    /// Like python-canopen's `LocalNode`: a block upload is answered as a normal upload, a
+    /// block download refused with 0504 0001h.
+    Switch,
+    /// Both refused with 0504 0001h.
+    Refuse,
+}
+
+/// The test device behind a filter that takes its block transfers away; `fate` loses (0),
+/// passes (1) or repeats (2) each frame. Runs until the transfer ends.
+fn run_without_block(l: &mut Link, how: NoBlock, mut fate: impl FnMut() -> usize) -> Done<Vec<u8>> {
+    let end = l.h.now + 60_000_000;
+    loop {
+        assert!(l.h.now <= end, "no end; last frames: {:#?}", l.log);
+        let now = l.h.now;
+        let mut to_dev = Vec::new();
+        if let Some(d) = l.c.poll(now, &mut |f| to_dev.push(f)) {
+            return d;
+        }
+        let mut to_cli = Vec::new();
+        for f in to_dev {
+            l.note(format!("-> {f}"));
+            let d = *f.raw();
+            let block_init = f.len() == 8 && ((d[0] & 0xE3 == 0xA0) || (d[0] & 0xE1 == 0xC0));
+            for _ in 0..fate() {
+                match (block_init, d[0] & 0xE0 == 0xA0, how) {
+                    (true, true, NoBlock::Switch) => {
+                        l.h.dev.on_frame(&Frame::new(f.id(), &[0x40, d[1], d[2], d[3], 0, 0, 0, 0]).unwrap(), now);
+                    }
+                    (true, _, _) => {
+                        let abort = [0x80, d[1], d[2], d[3], 0x01, 0x00, 0x04, 0x05];
+                        to_cli.push(Frame::new(0x580 + u16::from(NODE), &abort).unwrap());
+                    }
+                    (false, _, _) => l.h.dev.on_frame(&f, now),
+                }
+            }
+        }
+        l.h.dev.poll(now, |f| to_cli.push(f));
+        for f in to_cli {
+            l.note(format!("<- {f}"));
+            for _ in 0..fate() {
+                if let Some(d) = l.c.on_frame(&f, now) {
+                    return d;
+                }
+            }
+        }
+        l.h.now += l.step;
+    }
+}
+
+#[test]
+fn block_transfers_with_a_server_without_them_move_every_size() {
+    for how in [NoBlock::Switch, NoBlock::Refuse] {
+        let mut l = Link::new();
+        for len in [1usize, 2, 4, 5, 7, 8, 13, 14, 15, 100, 889, 1000, 1024] {
+            let data: Vec<u8> = (0..len).map(|i| (i * 13 + len) as u8).collect();
+            l.c.download(0x2003, 0, data.clone(), Mode::Block, l.h.now).unwrap();
+            let d = run_without_block(&mut l, how, || 1);
+            assert_eq!(d.result, Ok(len), "{how:?} {len}: {:#?}", l.log);
+            assert_eq!(l.h.od().bytes(0x2003, 0), data, "{how:?} {len}");
+            l.c.upload(0x2003, 0, vec![0; 1024], Mode::Block, l.h.now).unwrap();
+            let d = run_without_block(&mut l, how, || 1);
+            assert_eq!(value(&d), &data[..], "{how:?} {len}");
+        }
+        l.c.upload(0x1008, 0, vec![0; 64], Mode::Block, l.h.now).unwrap();
+        let d = run_without_block(&mut l, how, || 1);
+        assert_eq!(value(&d), b"od-runtime test drive");
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 200, ..ProptestConfig::default() })]
+
+    /// A server without block transfers on a bus that loses and repeats frames: a block
+    /// transfer that completes moved exactly the right bytes.
+    #[test]
+    fn block_fallback_on_a_faulty_bus_never_yields_a_wrong_value(
+        data in prop::collection::vec(any::<u8>(), 1..300),
+        refuse in any::<bool>(),
+        f in faults(),
+    ) {
+        let how = if refuse { NoBlock::Refuse } else { NoBlock::Switch };
+        let mut l = Link::new();
+        l.c.set_timeout(200_000);
+        let before = l.h.od().bytes(0x2003, 0);
+        let mut i = 0usize;
+        let mut fate = || {
+            i += 1;
+            usize::from(f.fate[i % f.fate.len()])
+        };
+        l.c.download(0x2003, 0, data.clone(), Mode::Block, l.h.now).unwrap();
+        let d = run_without_block(&mut l, how, &mut fate);
+        let stored = l.h.od().bytes(0x2003, 0);
+        match d.result {
+            Ok(n) => {
+                prop_assert_eq!(n, data.len());
+                prop_assert_eq!(&stored, &data);
+            }
+            Err(_) => prop_assert!(stored == data || stored == before),
+        }
+        l.c.upload(0x2003, 0, vec![0; 300], Mode::Block, l.h.now).unwrap();
+        let d = run_without_block(&mut l, how, &mut fate);
+        if let Ok(n) = d.result {
+            prop_assert_eq!(&d.buf[..n], &stored[..]);
+        }
     }
 }
 
