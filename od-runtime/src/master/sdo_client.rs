@@ -498,12 +498,14 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
     }
 
     fn fail(&mut self, code: AbortCode) -> Done<B> {
+        // The transfer's frames not sent yet are withdrawn: a segment queued before the answer
+        // that made the client give up would otherwise still go out, and could complete on the
+        // server a download this client reports as failed.
+        self.out.len -= self.unsent;
         if self.on_bus {
             self.push(request(0x80, self.index, self.sub, code.0.to_le_bytes()));
-        } else {
-            // Nothing of this transfer reached the bus: withdraw its request, send no abort.
-            self.out.len -= self.unsent;
         }
+        // Else nothing of this transfer reached the bus: no abort either.
         self.finish(Err(SdoError::Client(code)))
     }
 

@@ -441,6 +441,33 @@ fn server_abort_ends_every_kind_of_transfer_without_a_frame() {
     }
 }
 
+/// A segment queued in answer to one frame is not sent when the next frame, before the poll,
+/// makes the client abort: the server gets the abort only, and cannot complete a download the
+/// client reports as failed.
+#[test]
+fn an_abort_withdraws_the_segments_not_sent_yet() {
+    let mut c = Client::new(node(1));
+    c.download(0x2003, 0, (1..=8).collect(), Mode::Segmented, 0).unwrap();
+    expect(&mut c, &["601 21 03 20 00 08 00 00 00"]);
+    reply(&mut c, "581 60 03 20 00 00 00 00 00");
+    expect(&mut c, &["601 00 01 02 03 04 05 06 07"]);
+    // The answer, delivered twice: the first queues the last segment, the second (toggle 0
+    // again) is a toggle error.
+    assert!(reply(&mut c, "581 20 00 00 00 00 00 00 00").is_none());
+    let d = reply(&mut c, "581 20 00 00 00 00 00 00 00").unwrap();
+    assert_eq!(d.result, Err(SdoError::Client(AbortCode::TOGGLE_BIT)));
+    expect(&mut c, &["601 80 03 20 00 00 00 03 05"]);
+    // The same in an upload: the next segment request is withdrawn.
+    c.upload(0x2003, 0, vec![0; 32], Mode::Normal, 0).unwrap();
+    sent(&mut c, 0);
+    reply(&mut c, "581 41 03 20 00 0A 00 00 00");
+    sent(&mut c, 0);
+    assert!(reply(&mut c, "581 00 01 02 03 04 05 06 07").is_none());
+    let d = reply(&mut c, "581 00 01 02 03 04 05 06 07").unwrap();
+    assert_eq!(d.result, Err(SdoError::Client(AbortCode::TOGGLE_BIT)));
+    expect(&mut c, &["601 80 03 20 00 00 00 03 05"]);
+}
+
 #[test]
 fn wrong_toggle_bit_aborts() {
     let mut c = Client::new(node(1));
@@ -1102,8 +1129,21 @@ enum NoBlock {
 }
 
 /// The test device behind a filter that takes its block transfers away; `fate` loses (0),
-/// passes (1) or repeats (2) each frame. Runs until the transfer ends.
-fn run_without_block(l: &mut Link, how: NoBlock, mut fate: impl FnMut() -> usize) -> Done<Vec<u8>> {
+/// passes (1) or repeats (2) each frame. Runs until the transfer ends, then lets the client's
+/// last frames (an abort) reach the device.
+fn run_without_block(l: &mut Link, how: NoBlock, fate: impl FnMut() -> usize) -> Done<Vec<u8>> {
+    let d = run_without_block_until_done(l, how, fate);
+    let mut last = Vec::new();
+    assert!(l.c.poll(l.h.now, &mut |f| last.push(f)).is_none());
+    for f in last {
+        l.note(format!("-> {f}"));
+        l.h.dev.on_frame(&f, l.h.now);
+    }
+    l.h.dev.poll(l.h.now, |_| {});
+    d
+}
+
+fn run_without_block_until_done(l: &mut Link, how: NoBlock, mut fate: impl FnMut() -> usize) -> Done<Vec<u8>> {
     let end = l.h.now + 60_000_000;
     loop {
         assert!(l.h.now <= end, "no end; last frames: {:#?}", l.log);
@@ -1196,7 +1236,7 @@ proptest! {
         l.c.upload(0x2003, 0, vec![0; 300], Mode::Block, l.h.now).unwrap();
         let d = run_without_block(&mut l, how, &mut fate);
         if let Ok(n) = d.result {
-            prop_assert_eq!(&d.buf[..n], &stored[..]);
+            prop_assert_eq!(&d.buf[..n], &stored[..], "{:#?}", l.log);
         }
     }
 }
