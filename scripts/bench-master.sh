@@ -104,7 +104,8 @@ print(f"  od-master / python-canopen: {ours / theirs:.2f}x   3 nodes / 1 node: {
 csp = [r for r in runs if r["bench"] == "csp"][-1]
 j = csp["jitter_us"]
 print(f"CSP, 3 drives, SYNC {csp['period_us']} us, {csp['seconds']:.0f} s: {csp['syncs']} SYNCs, "
-      f"set-points missed {csp['missed']} (with no stall {csp['missed_on_time']}) doubled {csp['doubled']} "
+      f"set-points missed {csp['missed']} (with no stall {csp['missed_on_time']}) repeated {csp.get('repeated')} "
+      f"doubled {csp['doubled']} "
       f"of {csp['periods']} periods; SYNCs over half a period late {csp['late_syncs']}; "
       f"SYNC jitter p50/p99/max {j['p50']}/{j['p99']}/{j['max']} us")
 PY

@@ -3,6 +3,7 @@
 //!
 //! ```text
 //! bench reads --bus socketcand://127.0.0.1:29536/can0 --nodes 1,2,3 --seconds 10
+//! bench raw   --bus socketcand://127.0.0.1:29536/can0 --nodes 1 --seconds 10
 //! bench csp   --bus socketcand://127.0.0.1:29536/can0 --nodes 1,2,3 --seconds 60 --period-us 1000
 //! ```
 //!
@@ -13,7 +14,9 @@
 //! then cyclic synchronous position over RPDO 4 (COB-ID 500h + node) with a SYNC every
 //! `--period-us`, a set-point per SYNC per node for `--seconds`. A second connection to the hub
 //! logs every SYNC and set-point with the hub's time stamp (when the hub relayed it): a SYNC
-//! period without exactly one set-point of a node is a missed (or doubled) set-point, counted
+//! period without a set-point of a node is a missed one, one with more a doubled one, one with
+//! the same value as the period before a repeated one (the values step every period); missed
+//! ones are also counted
 //! apart where neither that period nor the one before was over 1.5 periods long (`missed_on_time`:
 //! not explained by the master's process being stalled); the SYNC jitter is |interval - period|
 //! between consecutive SYNCs, p50/p99/max, and `late_syncs` those over half a period.
@@ -156,9 +159,9 @@ async fn reads(a: &Args) -> Result<String, od_master::Error> {
     ))
 }
 
-/// A frame the hub relayed, as the log connection saw it: identifier and the hub's time stamp
-/// in microseconds.
-type Logged = (u32, u64);
+/// A frame the hub relayed, as the log connection saw it: identifier, the hub's time stamp in
+/// microseconds, and a set-point's value (its first four bytes).
+type Logged = (u32, u64, i32);
 
 /// Connects to the hub as a plain socketcand client and logs SYNC (080h) and the RPDOs in
 /// `ids` with their time stamps until `stop`.
@@ -183,7 +186,11 @@ fn log_frames(addr: &str, channel: &str, ids: Vec<u32>, stop: Arc<AtomicBool>, r
         let mut replies = Vec::new();
         dec.feed(&buf[..n], |m| match m {
             Ok(Message::Frame { frame, timestamp }) if frame.id() == 0x080 || ids.contains(&frame.id()) => {
-                log.push((frame.id(), timestamp.secs() * 1_000_000 + u64::from(timestamp.micros())));
+                let mut v = [0u8; 4];
+                let d = frame.data();
+                v[..d.len().min(4)].copy_from_slice(&d[..d.len().min(4)]);
+                let at = timestamp.secs() * 1_000_000 + u64::from(timestamp.micros());
+                log.push((frame.id(), at, i32::from_le_bytes(v)));
             }
             Ok(Message::Hi | Message::Ok) => replies.push(()),
             _ => {}
@@ -255,10 +262,10 @@ async fn csp(a: &Args) -> Result<String, od_master::Error> {
             let mut sent = 0u64;
             let began = Instant::now();
             while began.elapsed() < run {
-                // A slow triangle of 50 units each way, a step every 20 set-points: within what
-                // each drive follows in its default units.
-                let k = (sent / 20 % 100) as i32;
-                csp.send(here + if k < 50 { k } else { 100 - k }).await?;
+                // A triangle of 20 units each way, a step of one unit every set-point (so each
+                // differs from the one before, and a repeated one shows).
+                let k = (sent % 40) as i32;
+                csp.send(here + if k < 20 { k } else { 40 - k }).await?;
                 sent += 1;
             }
             Ok::<u64, od_master::Error>(sent)
@@ -287,21 +294,32 @@ async fn csp(a: &Args) -> Result<String, od_master::Error> {
     let lengths: Vec<u64> = syncs.windows(2).map(|w| log[w[1]].1 - log[w[0]].1).collect();
     let stalled = |k: usize| lengths[k] > a.period_us * 3 / 2 || (k > 0 && lengths[k - 1] > a.period_us * 3 / 2);
     let mut missed_on_time = vec![0u64; ids.len()];
+    // Per period and node: the set-points and the last value.
+    let mut values: Vec<Vec<Option<i32>>> = Vec::new();
     for w in syncs.windows(2) {
         let mut count = vec![0u64; ids.len()];
+        let mut value = vec![None; ids.len()];
         for f in &log[w[0] + 1..w[1]] {
             if let Some(k) = ids.iter().position(|&id| id == f.0) {
                 count[k] += 1;
+                value[k] = Some(f.2);
             }
         }
         windows.push(count);
+        values.push(value);
     }
+    // A set-point equal to the one of the period before: the task computing them was late and
+    // the bus repeated the last one (a missed update, though the drive had a set-point).
+    let mut repeated = vec![0u64; ids.len()];
     let first = windows.iter().position(|c| c.iter().all(|&n| n >= 1)).unwrap_or(windows.len());
     let last = windows.iter().rposition(|c| c.iter().all(|&n| n >= 1)).unwrap_or(0);
     if first <= last {
         for (i, c) in windows.iter().enumerate().take(last + 1).skip(first) {
             periods += 1;
             for (k, &n) in c.iter().enumerate() {
+                if i > first && n > 0 && values[i][k] == values[i - 1][k] {
+                    repeated[k] += 1;
+                }
                 if n == 0 {
                     missed[k] += 1;
                     if !stalled(i) {
@@ -322,7 +340,7 @@ async fn csp(a: &Args) -> Result<String, od_master::Error> {
     let list = |v: &[u64]| v.iter().map(u64::to_string).collect::<Vec<_>>().join(",");
     Ok(format!(
         "{{\"bench\":\"csp\",\"nodes\":{},\"period_us\":{},\"seconds\":{:.3},\"syncs\":{},\"periods\":{periods},\
-         \"setpoints_sent\":[{}],\"missed\":[{}],\"missed_on_time\":[{}],\"doubled\":[{}],\"late_syncs\":{late},\"jitter_us\":{{\"p50\":{},\"p99\":{},\"max\":{}}}}}",
+         \"setpoints_sent\":[{}],\"missed\":[{}],\"missed_on_time\":[{}],\"repeated\":[{}],\"doubled\":[{}],\"late_syncs\":{late},\"jitter_us\":{{\"p50\":{},\"p99\":{},\"max\":{}}}}}",
         a.nodes.len(),
         a.period_us,
         times.last().zip(times.first()).map_or(0.0, |(l, f)| (l - f) as f64 / 1e6),
@@ -330,6 +348,7 @@ async fn csp(a: &Args) -> Result<String, od_master::Error> {
         list(&sent),
         list(&missed),
         list(&missed_on_time),
+        list(&repeated),
         list(&doubled),
         percentile(&jitter, 0.5),
         percentile(&jitter, 0.99),

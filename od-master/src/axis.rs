@@ -23,6 +23,7 @@ use od_runtime::pdo::{Direction, MapEntry};
 use tokio::sync::watch;
 use tokio::time::Instant;
 
+use crate::bus::CyclicPdo;
 use crate::error::{AxisError, AxisErrorKind, Error};
 use crate::node::{Node, SdoValue};
 
@@ -453,8 +454,10 @@ impl Axis {
     /// Cyclic synchronous position: maps the target position (607Ah) into RPDO `rpdo`
     /// (1..=512; communication 1400h + rpdo − 1, mapping 1600h + rpdo − 1) on COB-ID `cob_id`,
     /// synchronous (every SYNC), starts the node (NMT), enters the mode and enables the drive.
-    /// The bus must send SYNC ([`Bus::start_sync`](crate::Bus::start_sync)); [`Csp::send`]
-    /// then streams one set-point per SYNC period.
+    /// The bus must send SYNC ([`Bus::start_sync`](crate::Bus::start_sync)); the bus sends the
+    /// RPDO right before each SYNC ([`Bus::cyclic_pdo`](crate::Bus::cyclic_pdo)), with the
+    /// latest set-point [`Csp::send`] gave (at first the position the drive is at), until the
+    /// [`Csp`] is dropped.
     pub async fn cyclic_position(&self, rpdo: u16, cob_id: u16) -> Result<Csp, Error> {
         let k = rpdo.clamp(1, 512) - 1;
         let (comm, map) = (0x1400 + k, 0x1600 + k);
@@ -475,26 +478,26 @@ impl Axis {
         self.node.start().await?;
         self.set_mode(mode::CYCLIC_SYNC_POSITION).await?;
         self.enable().await?;
-        Ok(Csp { node: self.node.clone(), cob_id, mapping, syncs: self.node.bus().syncs() })
+        let pdo = self.node.bus().cyclic_pdo(cob_id, mapping, &[PdoValue::Signed(i64::from(here))]).await?;
+        Ok(Csp { pdo, syncs: self.node.bus().syncs() })
     }
 }
 
 /// A cyclic synchronous position stream ([`Axis::cyclic_position`]).
 #[derive(Debug)]
 pub struct Csp {
-    node: Node,
-    cob_id: u16,
-    mapping: PdoMapping,
+    pdo: CyclicPdo,
     syncs: watch::Receiver<u64>,
 }
 
 impl Csp {
-    /// Waits for the next SYNC, then sends `position` as the next set-point: the drive takes it
-    /// at the SYNC after. Returns the number of SYNCs sent so far.
+    /// Waits for the next SYNC, then makes `position` the next set-point: the bus sends it
+    /// right before the SYNC after, and the drive takes it at that SYNC. Returns the number of
+    /// SYNCs sent so far.
     pub async fn send(&mut self, position: i32) -> Result<u64, Error> {
         self.syncs.changed().await.map_err(|_| Error::Closed)?;
         let n = *self.syncs.borrow_and_update();
-        self.node.bus().send_pdo(self.cob_id, &self.mapping, &[PdoValue::Signed(i64::from(position))]).await?;
+        self.pdo.set(&[PdoValue::Signed(i64::from(position))]).await?;
         Ok(n)
     }
 }

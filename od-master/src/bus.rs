@@ -9,7 +9,7 @@
 //! default identifiers, PDOs any identifier given.
 
 use std::collections::{HashMap, VecDeque};
-use std::sync::{Arc, Condvar, Mutex};
+use std::sync::{Arc, Condvar, Mutex, Weak};
 use std::time::Duration;
 
 use od_bus::CanFrame;
@@ -77,10 +77,32 @@ pub struct Bus {
 enum Command {
     Sdo(SdoRequest),
     Send(CanFrame, oneshot::Sender<Result<(), Error>>),
-    Watch { node: NodeId, watch: Option<Watch>, boot_timeout: Option<Duration>, reply: oneshot::Sender<()> },
-    Sync { period: Option<Duration>, counter: u8, reply: oneshot::Sender<Result<(), Error>> },
-    Tpdo { cob_id: u16, mapping: PdoMapping, to: mpsc::Sender<Tpdo> },
-    EmcyTexts { node: NodeId, texts: Arc<EmcyTexts> },
+    Watch {
+        node: NodeId,
+        watch: Option<Watch>,
+        boot_timeout: Option<Duration>,
+        reply: oneshot::Sender<()>,
+    },
+    Sync {
+        period: Option<Duration>,
+        counter: u8,
+        reply: oneshot::Sender<Result<(), Error>>,
+    },
+    Tpdo {
+        cob_id: u16,
+        mapping: PdoMapping,
+        to: mpsc::Sender<Tpdo>,
+    },
+    /// Sends `frame` right before every SYNC, replacing the frame of the same `owner`, until
+    /// the owner (a [`CyclicPdo`]) is dropped.
+    Cyclic {
+        frame: Frame,
+        owner: Weak<()>,
+    },
+    EmcyTexts {
+        node: NodeId,
+        texts: Arc<EmcyTexts>,
+    },
 }
 
 /// What an SDO request moves.
@@ -139,6 +161,7 @@ impl Bus {
             out: Vec::new(),
             sends: Vec::new(),
             clock: None,
+            cyclic: Vec::new(),
         };
         tokio::spawn(task.run());
         Self { commands, events, frames, syncs, link: link_state, sdo: config.sdo }
@@ -231,6 +254,17 @@ impl Bus {
         self.send(frame).await
     }
 
+    /// Sends an RPDO right before every SYNC from now on, in the same write as the SYNC:
+    /// `values` packed by `mapping` on `cob_id`, until [`CyclicPdo::set`] gives others or the
+    /// [`CyclicPdo`] is dropped. A synchronous RPDO (transmission type 1..=240) sent so is taken
+    /// by the drive at that SYNC: one set-point each period, the latest given, even when the
+    /// task that computes them is woken late (it then repeats the one before).
+    pub async fn cyclic_pdo(&self, cob_id: u16, mapping: PdoMapping, values: &[PdoValue]) -> Result<CyclicPdo, Error> {
+        let pdo = CyclicPdo { bus: self.clone(), cob_id, mapping, owner: Arc::new(()) };
+        pdo.set(values).await?;
+        Ok(pdo)
+    }
+
     /// Receives the TPDOs on `cob_id` from now on, decoded by `mapping`. Up to `capacity` wait
     /// for the receiver; past that, new ones are dropped until it reads.
     pub async fn tpdo(&self, cob_id: u16, mapping: PdoMapping, capacity: usize) -> Result<mpsc::Receiver<Tpdo>, Error> {
@@ -244,6 +278,34 @@ impl Bus {
     pub async fn set_emcy_texts(&self, node: u8, texts: EmcyTexts) -> Result<(), Error> {
         let node = NodeId::new(node).ok_or(Error::NodeId(node))?;
         self.commands.send(Command::EmcyTexts { node, texts: Arc::new(texts) }).await.map_err(|_| Error::Closed)
+    }
+}
+
+/// An RPDO the bus sends right before every SYNC ([`Bus::cyclic_pdo`]); dropping it stops it.
+#[derive(Debug)]
+pub struct CyclicPdo {
+    bus: Bus,
+    cob_id: u16,
+    mapping: PdoMapping,
+    /// The bus task keeps a weak reference: the PDO stops when this is dropped.
+    owner: Arc<()>,
+}
+
+impl CyclicPdo {
+    /// The values sent from the next SYNC on.
+    pub async fn set(&self, values: &[PdoValue]) -> Result<(), Error> {
+        let cob_id = self.cob_id;
+        let (data, len) = self.mapping.encode(values).map_err(|error| Error::Pdo { cob_id, error })?;
+        let can = CanFrame::standard(u32::from(cob_id), &data[..len]).map_err(od_bus::TransportError::from)?;
+        // A standard frame (checked above) always converts.
+        let frame = Frame::try_from(can).map_err(od_bus::TransportError::from)?;
+        let owner = Arc::downgrade(&self.owner);
+        self.bus.commands.send(Command::Cyclic { frame, owner }).await.map_err(|_| Error::Closed)
+    }
+
+    /// The bus it is sent on.
+    pub fn bus(&self) -> &Bus {
+        &self.bus
     }
 }
 
@@ -284,6 +346,8 @@ struct Task {
     sends: Vec<(CanFrame, oneshot::Sender<Result<(), Error>>)>,
     /// Wakes the task at SYNC time to the microsecond while SYNC runs.
     clock: Option<SyncClock>,
+    /// RPDOs sent right before each SYNC, while their owner lives.
+    cyclic: Vec<(Frame, Weak<()>)>,
 }
 
 /// A waker for the SYNC producer's deadlines: a thread that sleeps until the next SYNC is due
@@ -459,7 +523,10 @@ impl Task {
         }
         if let Some(sync) = &mut self.sync {
             let mut sent = 0;
+            let cyclic = &mut self.cyclic;
             sync.poll(now, |f| {
+                cyclic.retain(|(_, owner)| owner.strong_count() > 0);
+                out.extend(cyclic.iter().map(|(frame, _)| *frame));
                 out.push(f);
                 sent += 1;
             });
@@ -523,6 +590,10 @@ impl Task {
                 let _ = reply.send(result);
             }
             Command::Tpdo { cob_id, mapping, to } => self.tpdos.entry(cob_id).or_default().push((mapping, to)),
+            Command::Cyclic { frame, owner } => match self.cyclic.iter_mut().find(|(_, o)| o.ptr_eq(&owner)) {
+                Some(entry) => entry.0 = frame,
+                None => self.cyclic.push((frame, owner)),
+            },
             Command::EmcyTexts { node, texts } => {
                 self.texts.insert(node.get(), texts);
             }

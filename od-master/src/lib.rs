@@ -24,7 +24,7 @@ pub mod event;
 pub mod node;
 
 pub use axis::{Axis, AxisConfig, Homing, Move};
-pub use bus::{Bus, Config, Tpdo};
+pub use bus::{Bus, Config, CyclicPdo, Tpdo};
 pub use error::{AxisError, AxisErrorKind, Error};
 pub use event::{EmcyTexts, Event};
 pub use node::{Node, SdoOptions, SdoValue};

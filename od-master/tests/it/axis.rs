@@ -181,3 +181,54 @@ async fn a_homing_that_faults_is_reported_and_enable_resets_the_fault() {
     assert_eq!(axis.state().await.unwrap(), Some(State::OperationEnabled));
     assert_eq!(axis.home(&Homing::method(37)).await.unwrap(), 0);
 }
+
+/// A cyclic PDO goes out right before every SYNC, in the bus's frame order, with the latest
+/// values given, and stops when its handle is dropped.
+#[tokio::test(start_paused = true)]
+async fn a_cyclic_pdo_precedes_every_sync_with_the_latest_values() {
+    use od_master::{PdoField, PdoMapping, PdoValue};
+    use od_runtime::od::DataType;
+    use od_runtime::pdo::{Direction, MapEntry};
+    let n = net(&[]);
+    let mut seen = Link::attach(n.sim.lock().unwrap().bus());
+    let field = PdoField { entry: MapEntry { index: 0x607A, sub: 0, bits: 32 }, data_type: DataType::Integer32 };
+    let mapping = PdoMapping::from_fields(Direction::Receive, &[field]).unwrap();
+    let pdo = n.bus.cyclic_pdo(0x204, mapping, &[PdoValue::Signed(-2)]).await.unwrap();
+    n.bus.start_sync(Duration::from_millis(1), 0).await.unwrap();
+    let mut frames = Vec::new();
+    let mut record = async |frames: &mut Vec<(u32, Vec<u8>)>, d: Duration| {
+        let end = tokio::time::Instant::now() + d;
+        while let Ok(Ok(f)) = tokio::time::timeout_at(end, seen.recv()).await {
+            frames.push((f.id(), f.data().to_vec()));
+        }
+    };
+    record(&mut frames, Duration::from_micros(2_500)).await;
+    pdo.set(&[PdoValue::Signed(7)]).await.unwrap();
+    record(&mut frames, Duration::from_millis(3)).await;
+    drop(pdo);
+    record(&mut frames, Duration::from_millis(3)).await;
+    n.bus.stop_sync().await.unwrap();
+    let shown: Vec<String> = frames.iter().map(|(id, d)| format!("{id:03X} {d:02X?}")).collect();
+    let syncs: Vec<usize> = frames.iter().enumerate().filter(|(_, f)| f.0 == 0x080).map(|(i, _)| i).collect();
+    assert!(syncs.len() >= 8, "{shown:#?}");
+    let mut values = Vec::new();
+    for (k, &i) in syncs.iter().enumerate() {
+        let from = if k == 0 { 0 } else { syncs[k - 1] + 1 };
+        let between = &frames[from..i];
+        match between {
+            [] => values.push(None),
+            [(0x204, d)] => values.push(Some(i32::from_le_bytes(d[..4].try_into().unwrap()))),
+            other => panic!("one PDO at most before a SYNC: {other:?} in {shown:#?}"),
+        }
+    }
+    // -2 until the set, 7 after it, nothing once dropped: in that order, each at least twice.
+    let mut runs: Vec<(Option<i32>, usize)> = Vec::new();
+    for v in values {
+        match runs.last_mut() {
+            Some((last, count)) if *last == v => *count += 1,
+            _ => runs.push((v, 1)),
+        }
+    }
+    assert_eq!(runs.iter().map(|r| r.0).collect::<Vec<_>>(), [Some(-2), Some(7), None], "{shown:#?}");
+    assert!(runs.iter().all(|r| r.1 >= 2), "{runs:?}");
+}
