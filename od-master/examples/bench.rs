@@ -165,8 +165,14 @@ type Logged = (u32, u64, i32);
 
 /// Connects to the hub as a plain socketcand client and logs SYNC (080h) and the RPDOs in
 /// `ids` with their time stamps until `stop`.
-fn log_frames(addr: &str, channel: &str, ids: Vec<u32>, stop: Arc<AtomicBool>, ready: Arc<AtomicU64>) -> Vec<Logged> {
-    let mut s = TcpStream::connect(addr).expect("the hub accepts a connection");
+fn log_frames(
+    addr: &str,
+    channel: &str,
+    ids: Vec<u32>,
+    stop: Arc<AtomicBool>,
+    ready: Arc<AtomicU64>,
+) -> Result<Vec<Logged>, String> {
+    let mut s = TcpStream::connect(addr).map_err(|e| format!("log connection to {addr}: {e}"))?;
     s.set_nodelay(true).ok();
     s.set_read_timeout(Some(Duration::from_millis(100))).ok();
     let mut dec = Decoder::new();
@@ -175,13 +181,13 @@ fn log_frames(addr: &str, channel: &str, ids: Vec<u32>, stop: Arc<AtomicBool>, r
     let mut buf = vec![0u8; 1 << 16];
     loop {
         if stop.load(Ordering::Relaxed) {
-            return log;
+            return Ok(log);
         }
         let n = match s.read(&mut buf) {
-            Ok(0) => return log,
+            Ok(0) => return Err("the hub closed the log connection".into()),
             Ok(n) => n,
             Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => continue,
-            Err(e) => panic!("log connection: {e}"),
+            Err(e) => return Err(format!("log connection: {e}")),
         };
         let mut replies = Vec::new();
         dec.feed(&buf[..n], |m| match m {
@@ -203,7 +209,7 @@ fn log_frames(addr: &str, channel: &str, ids: Vec<u32>, stop: Arc<AtomicBool>, r
                 2 => Message::RawMode.write_to(&mut text),
                 _ => ready.store(1, Ordering::SeqCst),
             }
-            s.write_all(text.as_bytes()).expect("the hub takes the handshake");
+            s.write_all(text.as_bytes()).map_err(|e| format!("log connection handshake: {e}"))?;
         }
     }
 }
@@ -243,8 +249,15 @@ async fn csp(a: &Args) -> Result<String, od_master::Error> {
             (addr.to_owned(), channel.to_owned(), ids.clone(), Arc::clone(&stop), Arc::clone(&ready));
         std::thread::spawn(move || log_frames(&addr, &channel, ids, stop, ready))
     };
-    while ready.load(Ordering::SeqCst) == 0 {
+    while ready.load(Ordering::SeqCst) == 0 && !logger.is_finished() {
         tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    if logger.is_finished() {
+        let why = match logger.join() {
+            Ok(Err(e)) => e,
+            _ => "the log connection ended".to_owned(),
+        };
+        return Err(od_master::Error::Transport(od_bus::TransportError::Protocol(why)));
     }
     let period = Duration::from_micros(a.period_us);
     bus.start_sync(period, 0).await?;
@@ -278,7 +291,11 @@ async fn csp(a: &Args) -> Result<String, od_master::Error> {
     bus.stop_sync().await?;
     tokio::time::sleep(Duration::from_millis(200)).await;
     stop.store(true, Ordering::SeqCst);
-    let log = logger.join().expect("the log thread");
+    let log = match logger.join() {
+        Ok(Ok(log)) => log,
+        Ok(Err(e)) => return Err(od_master::Error::Transport(od_bus::TransportError::Protocol(e))),
+        Err(_) => return Err(od_master::Error::Closed),
+    };
     drop(streams);
 
     // Each SYNC period (from one SYNC to the next) should hold one set-point of each node.
