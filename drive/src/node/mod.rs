@@ -69,6 +69,7 @@ mod params;
 mod retain;
 mod run;
 mod sim;
+mod virtual_bus;
 
 use std::any::Any;
 use std::collections::VecDeque;
@@ -84,6 +85,7 @@ pub use params::{DcfError, NodeStorage, ParameterSet};
 pub use retain::{FileRetain, MemoryRetain, Retain};
 pub use run::{Backoff, BusEvent, Clock, MonotonicClock, RunStats, run, run_reconnecting};
 pub use sim::Sim;
+pub use virtual_bus::{ADVANCE_STEP, STEP, Seen, VirtualBus};
 
 /// Events held between the device call that raised them and their delivery to the
 /// application. A single frame raises at most a few dozen (an RPDO of 64 one-bit entries);

@@ -2,7 +2,7 @@
 //! identifier, then the data bytes, in hex), for tests that replay the manuals' listings
 //! through a [`Master`] on the virtual clock.
 
-use drive::drives::master::Master;
+use crate::support::Master;
 use od_bus::CanFrame;
 
 /// `"603 2B 40 60 00 06 00 00 00"` as a frame.
