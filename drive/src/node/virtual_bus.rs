@@ -1,33 +1,4 @@
-//! A [`Sim`] and an [`od_master::Bus`] on its in-memory bus, moved together in virtual time:
-//! how `drive-sim demo`, the drive tests and the benchmarks talk to simulated devices.
-//!
-//! The master is the project's one master, `od-master`: every SDO, NMT, PDO, SYNC and
-//! heartbeat frame is made and parsed there (its protocol core is `od_runtime::master`). This
-//! module only runs it: a current-thread tokio runtime with a paused clock, on which the
-//! master's bus task runs while [`VirtualBus::run`] waits for one of its calls, and which
-//! keeps tokio's clock and the simulation's equal between calls. The program keeps `&mut`
-//! access to the [`Sim`] between calls, to look at or change a device.
-//!
-//! Within one instant the devices answer at once: a request sent at `t` is handled, and its
-//! answer received, at `t` (a round trip takes no virtual time, as on the simulation's own
-//! endpoints); time moves on in steps of [`STEP`] only while a call waits for something
-//! later (a timeout, a device that answers late).
-//!
-//! ```
-//! use drive::drives::DeviceApps;
-//! use drive::node::{DeviceKind, NodeConfig, Sim, VirtualBus};
-//!
-//! let mut sim = Sim::new();
-//! sim.add(DeviceKind::Drvi.build(&NodeConfig { node_id: Some(2), ..Default::default() }, &DeviceApps::new()).unwrap());
-//! let mut vb = VirtualBus::new(sim, od_master::Config::default()).unwrap();
-//! vb.advance(1000); // boot-up
-//! assert_eq!(vb.take_id(0x702).len(), 1);
-//! let node = vb.bus().node(2).unwrap();
-//! assert_eq!(vb.run(node.read::<u32>(0x1000, 0)).unwrap(), 0xFF7A_0192);
-//! vb.run(node.start()).unwrap(); // NMT start
-//! vb.advance(1000);
-//! assert_eq!(vb.sim().node(0).nmt_state(), od_runtime::NmtState::Operational);
-//! ```
+//! [`VirtualBus`]: a simulation and the project's master on its bus, in virtual time.
 
 use std::collections::VecDeque;
 use std::future::{Future, poll_fn};
@@ -62,7 +33,37 @@ pub struct Seen {
     pub frame: CanFrame,
 }
 
-/// A [`Sim`] and the master on its bus, in virtual time (see the [module](self)).
+/// A [`Sim`] and an [`od_master::Bus`] on its in-memory bus, moved together in virtual time:
+/// how `drive-sim demo`, the drive tests and the benchmarks talk to simulated devices.
+///
+/// The master is the project's one master, `od-master`: every SDO, NMT, PDO, SYNC and
+/// heartbeat frame is made and parsed there (its protocol core is `od_runtime::master`). This
+/// type only runs it: a current-thread tokio runtime with a paused clock, on which the
+/// master's bus task runs while [`run`](Self::run) waits for one of its calls (or while
+/// [`advance`](Self::advance) hands it frames), tokio's clock brought to the simulation's
+/// before each. The program keeps `&mut` access to the [`Sim`] between calls, to look at or
+/// change a device.
+///
+/// Within one instant the devices answer at once: a request sent at `t` is handled, and its
+/// answer received, at `t` (a round trip takes no virtual time, as on the simulation's own
+/// endpoints); time moves on in steps of [`STEP`] only while a call waits for something
+/// later (a timeout, a device that answers late).
+///
+/// ```
+/// use drive::drives::DeviceApps;
+/// use drive::node::{DeviceKind, NodeConfig, Sim, VirtualBus};
+///
+/// let mut sim = Sim::new();
+/// sim.add(DeviceKind::Drvi.build(&NodeConfig { node_id: Some(2), ..Default::default() }, &DeviceApps::new()).unwrap());
+/// let mut vb = VirtualBus::new(sim, od_master::Config::default()).unwrap();
+/// vb.advance(1000); // boot-up
+/// assert_eq!(vb.take_id(0x702).len(), 1);
+/// let node = vb.bus().node(2).unwrap();
+/// assert_eq!(vb.run(node.read::<u32>(0x1000, 0)).unwrap(), 0xFF7A_0192);
+/// vb.run(node.start()).unwrap(); // NMT start
+/// vb.advance(1000);
+/// assert_eq!(vb.sim().node(0).nmt_state(), od_runtime::NmtState::Operational);
+/// ```
 pub struct VirtualBus {
     rt: Runtime,
     sim: Sim,
@@ -74,6 +75,8 @@ pub struct VirtualBus {
     seen: VecDeque<Seen>,
     received: u64,
     missed: u64,
+    /// Frames that went by on the bus (the master's and the devices').
+    went_by: u64,
     /// Tokio's instant that is the simulation's time 0.
     origin: Instant,
 }
@@ -96,7 +99,7 @@ impl VirtualBus {
             (bus, frames, origin)
         });
         let probe = sim.endpoint();
-        Ok(Self { rt, sim, bus, frames, probe, seen: VecDeque::new(), received: 0, missed: 0, origin })
+        Ok(Self { rt, sim, bus, frames, probe, seen: VecDeque::new(), received: 0, missed: 0, went_by: 0, origin })
     }
 
     /// The master: [`od_master::Bus::node`] for SDO and NMT, PDOs, SYNC, events. Its calls
@@ -126,6 +129,11 @@ impl VirtualBus {
         self.received
     }
 
+    /// Frames that went by on the bus so far: the master's and the devices'.
+    pub fn frames_on_bus(&self) -> u64 {
+        self.went_by
+    }
+
     /// Frames received by the master that were not collected here because more than the
     /// broadcast's capacity arrived in one instant (0 in every run so far; a test can check).
     pub fn frames_missed(&self) -> u64 {
@@ -135,8 +143,8 @@ impl VirtualBus {
     /// Runs `fut` (a call of the master) to its end, the simulation moving with the master's
     /// clock: at once within an instant, in steps of [`STEP`] while `fut` waits for later.
     pub fn run<F: Future>(&mut self, fut: F) -> F::Output {
-        let Self { rt, sim, frames, probe, seen, received, missed, origin, .. } = self;
-        let mut t = Tap { sim, frames, probe, seen, received, missed, origin: *origin };
+        let Self { rt, sim, frames, probe, seen, received, missed, went_by, origin, .. } = self;
+        let mut t = Tap { sim, frames, probe, seen, received, missed, went_by, origin: *origin };
         rt.block_on(async {
             t.catch_up().await;
             let mut fut = pin!(fut);
@@ -192,11 +200,13 @@ impl VirtualBus {
 
     /// Lets the master receive what went by since it last ran, if anything did.
     fn receive(&mut self) {
-        if drain(&mut self.probe) == 0 {
+        let n = drain(&mut self.probe);
+        if n == 0 {
             return;
         }
-        let Self { rt, sim, frames, probe, seen, received, missed, origin, .. } = self;
-        let mut t = Tap { sim, frames, probe, seen, received, missed, origin: *origin };
+        self.went_by += n as u64;
+        let Self { rt, sim, frames, probe, seen, received, missed, went_by, origin, .. } = self;
+        let mut t = Tap { sim, frames, probe, seen, received, missed, went_by, origin: *origin };
         rt.block_on(async {
             t.catch_up().await;
             t.settle().await;
@@ -263,6 +273,7 @@ struct Tap<'a> {
     seen: &'a mut VecDeque<Seen>,
     received: &'a mut u64,
     missed: &'a mut u64,
+    went_by: &'a mut u64,
     origin: Instant,
 }
 
@@ -323,6 +334,7 @@ impl Tap<'_> {
         tokio::task::yield_now().await;
         self.sim.advance(0);
         let went_by = drain(self.probe);
+        *self.went_by += went_by as u64;
         let collected = self.collect();
         went_by + collected > 0
     }
