@@ -8,6 +8,7 @@
 //! time passes between two steps) and the conversion of read bytes to the integer a test
 //! compares. Raw frames a test writes itself ([`Master::send`]) go on the bus as they are.
 
+use std::net::SocketAddr;
 use std::time::Duration;
 
 use drive::node::{Seen, Sim, VirtualBus};
@@ -37,6 +38,18 @@ pub fn abort(e: Error) -> Option<u32> {
         },
         _ => None,
     }
+}
+
+/// od-master's blocking facade on a `drive-sim` hub at `addr` (channel can0), and its handle
+/// on node `id`: SDO answers awaited up to `timeout`, never retried (a lost answer fails the
+/// test instead of being hidden).
+pub fn on_hub(addr: SocketAddr, id: u8, timeout: Duration) -> (od_master::blocking::Bus, od_master::blocking::Node) {
+    let sdo = od_master::SdoOptions { timeout, retries: 0, ..Default::default() };
+    let config = od_master::Config { sdo, ..Default::default() };
+    let bus =
+        od_master::blocking::Bus::open(&format!("socketcand://{addr}/can0"), config).expect("od-master on the hub");
+    let node = bus.node(id).expect("a node id");
+    (bus, node)
 }
 
 /// A simulation and od-master on its bus, with the tests' short calls.
