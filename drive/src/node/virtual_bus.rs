@@ -144,16 +144,19 @@ impl VirtualBus {
     /// clock: at once within an instant, in steps of [`STEP`] while `fut` waits for later.
     pub fn run<F: Future>(&mut self, fut: F) -> F::Output {
         let Self { rt, sim, frames, probe, seen, received, missed, went_by, origin, .. } = self;
-        let mut t = Tap { sim, frames, probe, seen, received, missed, went_by, origin: *origin };
+        let mut t = Tap { sim, frames, probe, seen, received, missed, went_by, last_went_by: 1, origin: *origin };
         rt.block_on(async {
             t.catch_up().await;
             let mut fut = pin!(fut);
             let mut quiet = 0;
             loop {
                 if let Poll::Ready(out) = poll_fn(|cx| Poll::Ready(fut.as_mut().poll(cx))).await {
-                    // Until a round moves nothing: the master has taken in every frame the
-                    // devices sent at this instant.
-                    while t.round().await {}
+                    // The master has taken in every frame the devices sent at this instant
+                    // once a round moves nothing on the bus (the last one may have, if the
+                    // call ended with a frame the master sent).
+                    if t.last_went_by > 0 {
+                        while t.round().await {}
+                    }
                     return out;
                 }
                 if t.round().await {
@@ -206,7 +209,7 @@ impl VirtualBus {
         }
         self.went_by += n as u64;
         let Self { rt, sim, frames, probe, seen, received, missed, went_by, origin, .. } = self;
-        let mut t = Tap { sim, frames, probe, seen, received, missed, went_by, origin: *origin };
+        let mut t = Tap { sim, frames, probe, seen, received, missed, went_by, last_went_by: 1, origin: *origin };
         rt.block_on(async {
             t.catch_up().await;
             t.settle().await;
@@ -274,6 +277,8 @@ struct Tap<'a> {
     received: &'a mut u64,
     missed: &'a mut u64,
     went_by: &'a mut u64,
+    /// Frames that went by in the last round (before the first: as if some did).
+    last_went_by: usize,
     origin: Instant,
 }
 
@@ -334,6 +339,7 @@ impl Tap<'_> {
         tokio::task::yield_now().await;
         self.sim.advance(0);
         let went_by = drain(self.probe);
+        self.last_went_by = went_by;
         *self.went_by += went_by as u64;
         let collected = self.collect();
         went_by + collected > 0
