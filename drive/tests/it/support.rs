@@ -40,14 +40,18 @@ pub fn abort(e: Error) -> Option<u32> {
     }
 }
 
-/// od-master's blocking facade on a `drive-sim` hub at `addr` (channel can0), and its handle
-/// on node `id`: SDO answers awaited up to `timeout`, never retried (a lost answer fails the
-/// test instead of being hidden).
-pub fn on_hub(addr: SocketAddr, id: u8, timeout: Duration) -> (od_master::blocking::Bus, od_master::blocking::Node) {
+/// od-master's blocking facade on a `drive-sim` hub at `addr` (`HOST:PORT`), channel
+/// `channel`: SDO answers awaited up to `timeout`, never retried (a lost answer fails the test
+/// instead of being hidden).
+pub fn hub_master(addr: impl std::fmt::Display, channel: &str, timeout: Duration) -> od_master::blocking::Bus {
     let sdo = od_master::SdoOptions { timeout, retries: 0, ..Default::default() };
     let config = od_master::Config { sdo, ..Default::default() };
-    let bus =
-        od_master::blocking::Bus::open(&format!("socketcand://{addr}/can0"), config).expect("od-master on the hub");
+    od_master::blocking::Bus::open(&format!("socketcand://{addr}/{channel}"), config).expect("od-master on the hub")
+}
+
+/// [`hub_master`] on channel can0, and its handle on node `id`.
+pub fn on_hub(addr: SocketAddr, id: u8, timeout: Duration) -> (od_master::blocking::Bus, od_master::blocking::Node) {
+    let bus = hub_master(addr, "can0", timeout);
     let node = bus.node(id).expect("a node id");
     (bus, node)
 }
