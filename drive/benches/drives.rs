@@ -2,7 +2,8 @@
 //!
 //! * `drives/drvi_1`: one DRVI (common CiA 402 layer + DRVI behaviour + motion model, ticking at
 //!   1 ms) turning at 60 rpm in profile velocity, its TPDO1 (statusword) and a TPDO2 with
-//!   position and velocity every 10 ms going to a master endpoint on the in-memory bus. One
+//!   position and velocity every 10 ms going to od-master on the in-memory bus (a
+//!   `VirtualBus`: the master receives after every millisecond in which frames went by). One
 //!   iteration simulates 1 s; criterion's throughput is in simulated milliseconds per second.
 //! * `drives/drvi_32`: 32 such DRVIs on one in-memory bus (node ids 1..=32), 100 ms per
 //!   iteration; throughput in simulated bus milliseconds per second.
@@ -16,43 +17,51 @@ use std::time::Instant;
 
 use criterion::{Criterion, Throughput};
 use drive::drives::DeviceApps;
-use drive::drives::master::Master;
-use drive::node::{DeviceKind, NodeConfig, Sim};
+use drive::node::{DeviceKind, NodeConfig, Sim, VirtualBus};
+use od_master::{Axis, Node};
 
-/// `n` DRVIs enabled and turning at 60 rpm, TPDO2 = 6064h + 606Ch every 10 ms.
-fn drives(n: u8) -> Master {
+/// `n` DRVIs enabled and turning at 60 rpm, TPDO2 = 6064h + 606Ch every 10 ms, set up by
+/// od-master (the master receiving in step with the simulation).
+fn drives(n: u8) -> VirtualBus {
     let mut sim = Sim::new();
     let apps = DeviceApps::new();
     for id in 1..=n {
         let config = NodeConfig { node_id: Some(id), ..NodeConfig::default() };
         sim.add(DeviceKind::Drvi.build(&config, &apps).expect("a DRVI"));
     }
-    let mut m = Master::new(sim);
+    let mut m = VirtualBus::new(sim, od_master::Config::default()).expect("a tokio runtime");
     m.advance(1000);
     for id in 1..=n {
-        let cob = 0x280 + u32::from(id);
-        m.write_u32(id, 0x1801, 1, cob | 0x8000_0000).unwrap();
-        m.write_u8(id, 0x1A01, 0, 0).unwrap();
-        m.write_u32(id, 0x1A01, 1, 0x6064_0020).unwrap();
-        m.write_u32(id, 0x1A01, 2, 0x606C_0020).unwrap();
-        m.write_u8(id, 0x1A01, 0, 2).unwrap();
-        m.write_u16(id, 0x1801, 3, 100).unwrap(); // inhibit 10 ms
-        m.write_u16(id, 0x1801, 5, 10).unwrap(); // event timer 10 ms
-        m.write_u32(id, 0x1801, 1, cob).unwrap();
-        m.switch_on(id).unwrap();
-        m.set_mode(id, 3).unwrap();
-        m.write_u32(id, 0x6083, 0, 600).unwrap();
-        m.write_u32(id, 0x6084, 0, 600).unwrap();
-        m.write_i32(id, 0x60FF, 0, 6000).unwrap();
+        let node = m.bus().node(id).expect("a node id");
+        m.run(setup(node)).expect("a DRVI set up");
     }
-    m.nmt_start(0);
+    let bus = m.bus().clone();
+    m.run(bus.nmt(od_master::NmtCommand::Start, od_master::Target::All)).unwrap();
     m.advance(200_000);
     m.take_seen();
     m
 }
 
+async fn setup(node: Node) -> Result<(), od_master::Error> {
+    let cob = 0x280 + u32::from(node.id());
+    node.write(0x1801, 1, cob | 0x8000_0000).await?;
+    node.write(0x1A01, 0, 0u8).await?;
+    node.write(0x1A01, 1, 0x6064_0020u32).await?;
+    node.write(0x1A01, 2, 0x606C_0020u32).await?;
+    node.write(0x1A01, 0, 2u8).await?;
+    node.write(0x1801, 3, 100u16).await?; // inhibit 10 ms
+    node.write(0x1801, 5, 10u16).await?; // event timer 10 ms
+    node.write(0x1801, 1, cob).await?;
+    let axis = Axis::new(node.clone());
+    axis.enable().await?;
+    axis.set_mode(3).await?;
+    node.write(0x6083, 0, 600u32).await?;
+    node.write(0x6084, 0, 600u32).await?;
+    node.write(0x60FF, 0, 6000i32).await
+}
+
 /// Simulated seconds per wall second over `simulated_us` of virtual time.
-fn factor(m: &mut Master, simulated_us: u64) -> f64 {
+fn factor(m: &mut VirtualBus, simulated_us: u64) -> f64 {
     let t = Instant::now();
     m.advance(simulated_us);
     m.take_seen();

@@ -20,7 +20,7 @@ use od_runtime::master::{
     TransferError, Watch,
 };
 use od_runtime::od::AbortCode;
-use od_runtime::{Frame, Micros, NmtCommand, NodeId};
+use od_runtime::{Frame, Micros, NmtCommand, NmtState, NodeId};
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 use tokio::time::Instant;
 
@@ -245,6 +245,52 @@ impl Bus {
     /// Stops sending SYNC.
     pub async fn stop_sync(&self) -> Result<(), Error> {
         self.call(|reply| Command::Sync { period: None, counter: 0, reply }).await?
+    }
+
+    /// Sends one SYNC now (080h, without counter), whether or not SYNC is also sent
+    /// periodically ([`start_sync`](Self::start_sync)): for a program that paces the bus
+    /// itself, as a test stepping a simulation does.
+    ///
+    /// ```
+    /// # #[tokio::main(flavor = "current_thread")]
+    /// # async fn main() {
+    /// use od_bus::{Endpoint, MemoryBus};
+    /// let wire = MemoryBus::new();
+    /// let mut device = wire.endpoint();
+    /// let bus = od_master::Bus::start(od_bus::tokio::Bus::attach(&wire), Default::default());
+    /// bus.send_sync().await.unwrap();
+    /// assert_eq!(device.try_recv().unwrap().unwrap().to_string(), "080#");
+    /// # }
+    /// ```
+    pub async fn send_sync(&self) -> Result<(), Error> {
+        self.send(CanFrame::from(SyncProducer::new(0).frame())).await
+    }
+
+    /// Sends one heartbeat now as node `id` in `state` (700h + id): the master's own heartbeat
+    /// at times the program chooses, where [`Config::heartbeat`] sends it periodically.
+    ///
+    /// ```
+    /// # #[tokio::main(flavor = "current_thread")]
+    /// # async fn main() {
+    /// use od_bus::{Endpoint, MemoryBus};
+    /// let wire = MemoryBus::new();
+    /// let mut device = wire.endpoint();
+    /// let bus = od_master::Bus::start(od_bus::tokio::Bus::attach(&wire), Default::default());
+    /// bus.send_heartbeat(1, od_master::NmtState::Operational).await.unwrap();
+    /// assert_eq!(device.try_recv().unwrap().unwrap().to_string(), "701#05");
+    /// assert!(bus.send_heartbeat(0, od_master::NmtState::Operational).await.is_err());
+    /// # }
+    /// ```
+    pub async fn send_heartbeat(&self, id: u8, state: NmtState) -> Result<(), Error> {
+        let node = NodeId::new(id).ok_or(Error::NodeId(id))?;
+        let mut producer = HeartbeatProducer::new(node, 1);
+        producer.set_state(state);
+        let mut frame = None;
+        producer.poll(0, |f| frame = Some(f));
+        match frame {
+            Some(f) => self.send(CanFrame::from(f)).await,
+            None => Ok(()),
+        }
     }
 
     /// Sends an RPDO: `values` packed by `mapping` on `cob_id`.

@@ -25,9 +25,10 @@
 //! when it stops (one device: the files as named; several: `-<device>-node<id>` before the
 //! extension).
 //!
-//! `demo` runs the main job in process on the virtual clock: a DRVI on an in-memory bus, a small
-//! master taking it through NMT, the CiA 402 state machine, homing and an absolute move in
-//! physical units with real frames (`drive::drives::demo`), printing what happened.
+//! `demo` runs the main job in process on the virtual clock: a DRVI on an in-memory bus, the
+//! project's master (`od-master`) taking it through NMT, the CiA 402 state machine, homing and
+//! an absolute move in physical units with real frames (`drive::drives::demo`), printing what
+//! happened.
 //!
 //! A device on `--bus` survives the bus: when its connection fails it keeps its state and runs
 //! on, and reconnects with backoff. The hub limits (`hub`, `run --listen`) are described in

@@ -1,6 +1,6 @@
 //! The main job end to end, in process and on the virtual clock: a simulated DRVI on an
-//! in-memory bus, driven by the small [`Master`] with real CANopen frames (SDO, NMT, RPDO,
-//! TPDO) through the node runner: boot-up, PDO mapping, NMT start, the CiA 402 state machine to
+//! in-memory bus, driven by the project's master, `od-master` (on a [`VirtualBus`]), with real
+//! CANopen frames (SDO, NMT, RPDO, TPDO) through the node runner: boot-up, PDO mapping, NMT start, the CiA 402 state machine to
 //! Operation enabled, homing, an absolute profile-position move given in physical units
 //! (converted with the generated `units` module), a readable log, and the trace as CSV and SVG.
 //!
@@ -12,6 +12,11 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
 
+use od_master::{Axis, Error as MasterError, Node as MasterNode, PdoField, PdoMapping, PdoValue, Tpdo};
+use od_runtime::od::DataType;
+use od_runtime::pdo::{Direction, MapEntry};
+use tokio::sync::mpsc;
+
 use generated::drvi::Dictionary;
 use generated::drvi::units::{Dimension, Quantity, Unit, Units};
 use od_runtime::Micros;
@@ -19,8 +24,7 @@ use od_runtime::cia402::State;
 use od_runtime::od::ObjectDictionary;
 
 use super::DeviceApps;
-use super::master::{Master, SdoError};
-use crate::node::{DeviceKind, NodeConfig, Sim};
+use crate::node::{DeviceKind, NodeConfig, Sim, VirtualBus};
 use crate::trace::{PlotOptions, Quantity as PlotQuantity, Trace};
 
 /// What the demo does and where it writes.
@@ -51,7 +55,7 @@ pub struct DemoReport {
     pub virtual_us: Micros,
     /// Wall-clock time it took, seconds.
     pub wall_s: f64,
-    /// Frames the master sent.
+    /// Frames the master sent (the frames on the bus less those it received).
     pub frames_sent: u64,
     /// Frames the master received.
     pub frames_received: u64,
@@ -72,13 +76,13 @@ pub enum DemoError {
     /// The node could not be built.
     #[error("{0}")]
     Setup(String),
-    /// An SDO transfer failed.
+    /// A call of the master (an SDO transfer, a PDO, NMT) failed.
     #[error("{what}: {error}")]
     Sdo {
         /// The step.
         what: String,
-        /// The failure.
-        error: SdoError,
+        /// The failure, as od-master reports it.
+        error: MasterError,
     },
     /// The drive did not get where it should within the time allowed.
     #[error("{0}")]
@@ -89,7 +93,13 @@ pub enum DemoError {
 }
 
 struct Demo<'a> {
-    m: Master,
+    m: VirtualBus,
+    node: MasterNode,
+    /// TPDO1 (statusword) and TPDO2 (position, velocity), decoded by od-master.
+    tpdo1: mpsc::Receiver<Tpdo>,
+    tpdo2: mpsc::Receiver<Tpdo>,
+    /// RPDO1: the controlword.
+    rpdo1: PdoMapping,
     id: u8,
     out: &'a mut dyn Write,
     units: Units,
@@ -98,7 +108,7 @@ struct Demo<'a> {
     velocity: i32,
 }
 
-fn sdo<T>(what: &str, r: Result<T, SdoError>) -> Result<T, DemoError> {
+fn sdo<T>(what: &str, r: Result<T, MasterError>) -> Result<T, DemoError> {
     r.map_err(|error| DemoError::Sdo { what: what.to_owned(), error })
 }
 
@@ -122,7 +132,7 @@ impl Demo<'_> {
     }
 
     fn log(&mut self, text: &str) -> Result<(), DemoError> {
-        let frames = self.m.frames_sent() + self.m.frames_received();
+        let frames = self.m.frames_on_bus();
         writeln!(self.out, "[{:>7.3} s] {:>5} frames  {text}", self.t(), frames)?;
         Ok(())
     }
@@ -139,22 +149,30 @@ impl Demo<'_> {
 
     /// Takes the TPDOs received so far: TPDO1 = statusword, TPDO2 = position + velocity.
     fn pdos(&mut self) {
-        let (tpdo1, tpdo2) = (0x180 + u32::from(self.id), 0x280 + u32::from(self.id));
-        for s in self.m.take_seen() {
-            let d = s.frame.data();
-            if s.frame.id() == tpdo1 && d.len() >= 2 {
-                self.statusword = u16::from_le_bytes([d[0], d[1]]);
-            } else if s.frame.id() == tpdo2 && d.len() >= 8 {
-                self.position = i32::from_le_bytes([d[0], d[1], d[2], d[3]]);
-                self.velocity = i32::from_le_bytes([d[4], d[5], d[6], d[7]]);
+        self.m.take_seen();
+        while let Ok(t) = self.tpdo1.try_recv() {
+            if let [PdoValue::Unsigned(sw)] = t.values[..] {
+                self.statusword = sw as u16;
+            }
+        }
+        while let Ok(t) = self.tpdo2.try_recv() {
+            if let [PdoValue::Signed(p), PdoValue::Signed(v)] = t.values[..] {
+                self.position = p as i32;
+                self.velocity = v as i32;
             }
         }
     }
 
-    fn controlword(&mut self, cw: u16) {
-        self.m.pdo(0x200 + u32::from(self.id), &cw.to_le_bytes());
+    /// The controlword by RPDO1.
+    fn controlword(&mut self, cw: u16) -> Result<(), DemoError> {
+        let (bus, cob_id) = (self.m.bus().clone(), 0x200 + u16::from(self.id));
+        let mapping = self.rpdo1;
+        let sent =
+            self.m.run(async move { bus.send_pdo(cob_id, &mapping, &[PdoValue::Unsigned(u64::from(cw))]).await });
+        sdo("RPDO1", sent)?;
         self.m.advance(1000);
         self.pdos();
+        Ok(())
     }
 
     /// Waits (watching the TPDOs) until `statusword & mask == value`.
@@ -176,10 +194,37 @@ impl Demo<'_> {
     }
 
     fn go_to_state(&mut self, cw: u16, want: State) -> Result<(), DemoError> {
-        self.controlword(cw);
+        self.controlword(cw)?;
         self.wait_sw(0x6F, want.statusword_bits() & 0x6F, 1.0, state_name(want.statusword_bits()))?;
         let sw = self.statusword;
         self.log(&format!("controlword {cw:#06X} (RPDO1) -> statusword {sw:#06X} (TPDO1): {}", state_name(sw)))
+    }
+
+    /// Runs one SDO call of the master on the drive.
+    fn call<T>(
+        &mut self,
+        what: &str,
+        f: impl AsyncFnOnce(MasterNode) -> Result<T, MasterError>,
+    ) -> Result<T, DemoError> {
+        let node = self.node.clone();
+        let r = self.m.run(f(node));
+        sdo(what, r)
+    }
+
+    fn read_bytes(&mut self, what: &str, index: u16, sub: u8) -> Result<Vec<u8>, DemoError> {
+        self.call(what, async |n| n.read_bytes(index, sub).await)
+    }
+
+    fn read_u32(&mut self, what: &str, index: u16, sub: u8) -> Result<u32, DemoError> {
+        self.call(what, async |n| n.read::<u32>(index, sub).await)
+    }
+
+    fn write_bytes(&mut self, what: &str, index: u16, sub: u8, data: &[u8]) -> Result<(), DemoError> {
+        self.call(what, async |n| n.write_bytes(index, sub, data).await)
+    }
+
+    fn set_mode(&mut self, mode: i8) -> Result<(), DemoError> {
+        self.call("6060h", async |n| Axis::new(n).set_mode(mode).await)
     }
 
     fn deg(&self) -> f64 {
@@ -207,11 +252,31 @@ pub fn run(options: &DemoOptions, out: &mut dyn Write) -> Result<DemoReport, Dem
         .build(&NodeConfig { node_id: Some(id), ..NodeConfig::default() }, &apps)
         .map_err(|e| DemoError::Setup(e.to_string()))?;
     sim.add(node);
-    let mut m = Master::new(sim);
+    let mut m = VirtualBus::new(sim, od_master::Config::default())?;
     m.advance(1000);
     let bootup = m.take_id(0x700 + u32::from(id));
+    let node = sdo("node id", m.bus().node(id))?;
+    let field =
+        |index: u16, bits: u8, data_type: DataType| PdoField { entry: MapEntry { index, sub: 0, bits }, data_type };
+    let mapping = |dir: Direction, fields: &[PdoField]| {
+        PdoMapping::from_fields(dir, fields).map_err(|e| DemoError::Setup(format!("PDO mapping: {e:?}")))
+    };
+    let tpdo1_map = mapping(Direction::Transmit, &[field(0x6041, 16, DataType::Unsigned16)])?;
+    let tpdo2_map = mapping(
+        Direction::Transmit,
+        &[field(0x6064, 32, DataType::Integer32), field(0x606C, 32, DataType::Integer32)],
+    )?;
+    let rpdo1 = mapping(Direction::Receive, &[field(0x6040, 16, DataType::Unsigned16)])?;
+    let bus = m.bus().clone();
+    let (cob1, cob2) = (0x180 + u16::from(id), 0x280 + u16::from(id));
+    let tpdo1 = sdo("TPDO1", m.run(bus.tpdo(cob1, tpdo1_map, 1024)))?;
+    let tpdo2 = sdo("TPDO2", m.run(bus.tpdo(cob2, tpdo2_map, 1024)))?;
     let mut d = Demo {
         m,
+        node,
+        tpdo1,
+        tpdo2,
+        rpdo1,
         id,
         out,
         units: Units::from_dictionary(&Dictionary::new(id)).map_err(|e| DemoError::Setup(format!("{e:?}")))?,
@@ -223,9 +288,9 @@ pub fn run(options: &DemoOptions, out: &mut dyn Write) -> Result<DemoReport, Dem
     d.log(&format!("boot-up message 0x{:03X} {:02X?}", 0x700 + u32::from(id), bootup.first().map(|s| s.frame.data())))?;
 
     // Who is there (segmented upload for the name).
-    let name = sdo("1008h", d.m.read(id, 0x1008, 0))?;
-    let vendor = sdo("1018h sub 1", d.m.read_u32(id, 0x1018, 1))?;
-    let device_type = sdo("1000h", d.m.read_u32(id, 0x1000, 0))?;
+    let name = d.read_bytes("1008h", 0x1008, 0)?;
+    let vendor = d.read_u32("1018h sub 1", 0x1018, 1)?;
+    let device_type = d.read_u32("1000h", 0x1000, 0)?;
     d.log(&format!(
         "SDO: device name \"{}\", vendor id {vendor:#X}, device type {device_type:#010X} (CiA 402)",
         String::from_utf8_lossy(&name)
@@ -236,7 +301,7 @@ pub fn run(options: &DemoOptions, out: &mut dyn Write) -> Result<DemoReport, Dem
     let mut mirror = Dictionary::new(id);
     for (index, sub) in [(0x2014u16, 0u8), (0x2001, 1), (0x2001, 2), (0x6091, 1), (0x6091, 2), (0x6092, 1), (0x6092, 2)]
     {
-        let v = sdo("unit configuration", d.m.read(id, index, sub))?;
+        let v = d.read_bytes("unit configuration", index, sub)?;
         let _ = mirror.write(index, sub, &v);
     }
     d.units = Units::from_dictionary(&mirror).map_err(|e| DemoError::Setup(format!("units: {e:?}")))?;
@@ -264,11 +329,11 @@ pub fn run(options: &DemoOptions, out: &mut dyn Write) -> Result<DemoReport, Dem
         ("enable TPDO2", 0x1801, 1, cob2.to_le_bytes().to_vec()),
     ];
     for (what, index, sub, data) in steps {
-        sdo(what, d.m.write(id, index, sub, &data))?;
+        d.write_bytes(what, index, sub, &data)?;
     }
     d.log(&format!("TPDO2 0x{cob2:03X} mapped to 6064h + 606Ch, at most and at least every 50 ms; TPDO1 0x{:03X} = 6041h; RPDO1 0x{:03X} = 6040h", 0x180 + u32::from(id), 0x200 + u32::from(id)))?;
 
-    d.m.nmt_start(id);
+    d.call("NMT start", async |n| n.start().await)?;
     d.m.advance(2000);
     d.pdos();
     d.log(&format!("NMT start -> operational; statusword {:#06X}: {}", d.statusword, state_name(d.statusword)))?;
@@ -281,16 +346,16 @@ pub fn run(options: &DemoOptions, out: &mut dyn Write) -> Result<DemoReport, Dem
     let fast = d.raw(Dimension::Velocity, 30, Unit::Rpm)?;
     let slow = d.raw(Dimension::Velocity, 5, Unit::Rpm)?;
     let acc = d.raw(Dimension::Acceleration, 200, Unit::RpmPerSecond)?;
-    sdo("6098h", d.m.write(id, 0x6098, 0, &[18]))?;
-    sdo("6099h sub 1", d.m.write_u32(id, 0x6099, 1, fast as u32))?;
-    sdo("6099h sub 2", d.m.write_u32(id, 0x6099, 2, slow as u32))?;
-    sdo("609Ah", d.m.write_u32(id, 0x609A, 0, acc as u32))?;
-    sdo("607Ch", d.m.write_i32(id, 0x607C, 0, 0))?;
-    sdo("6060h", d.m.set_mode(id, 6))?;
+    d.write_bytes("6098h", 0x6098, 0, &[18])?;
+    d.write_bytes("6099h sub 1", 0x6099, 1, &(fast as u32).to_le_bytes())?;
+    d.write_bytes("6099h sub 2", 0x6099, 2, &(slow as u32).to_le_bytes())?;
+    d.write_bytes("609Ah", 0x609A, 0, &(acc as u32).to_le_bytes())?;
+    d.write_bytes("607Ch", 0x607C, 0, &0i32.to_le_bytes())?;
+    d.set_mode(6)?;
     d.log(&format!(
         "homing: method 18 (proximity, positive), 30 rpm search = {fast}, 5 rpm out = {slow}, 200 rpm/s = {acc} raw"
     ))?;
-    d.controlword(0x1F);
+    d.controlword(0x1F)?;
     d.log("controlword 0x001F: homing started")?;
     let start = d.m.now();
     let mut next_log = start;
@@ -312,10 +377,10 @@ pub fn run(options: &DemoOptions, out: &mut dyn Write) -> Result<DemoReport, Dem
         }
         d.m.advance(1000);
     }
-    d.controlword(0x0F);
-    let homed = sdo("2004h", d.m.read_u64(id, 0x2004, 0))?;
-    let p = sdo("6064h", d.m.read_i64(id, 0x6064, 0))?;
-    let homed_at_deg = d.physical(Dimension::Position, p);
+    d.controlword(0x0F)?;
+    let homed = d.read_bytes("2004h", 0x2004, 0)?.iter().rev().fold(0u64, |v, b| v << 8 | u64::from(*b));
+    let p = d.call("6064h", async |n| n.read::<i32>(0x6064, 0).await)?;
+    let homed_at_deg = d.physical(Dimension::Position, i64::from(p));
     d.log(&format!(
         "homing completed (statusword {:#06X}, 2004h = {homed}): position {homed_at_deg:.2} deg",
         d.statusword
@@ -328,19 +393,19 @@ pub fn run(options: &DemoOptions, out: &mut dyn Write) -> Result<DemoReport, Dem
     let target = d.raw(Dimension::Position, options.target_deg, Unit::Degree)?;
     let v = d.raw(Dimension::Velocity, 60, Unit::Rpm)?;
     let a = d.raw(Dimension::Acceleration, 60, Unit::RpmPerSecond)?;
-    sdo("6060h", d.m.set_mode(id, 1))?;
-    sdo("6081h", d.m.write_u32(id, 0x6081, 0, v as u32))?;
-    sdo("6083h", d.m.write_u32(id, 0x6083, 0, a as u32))?;
-    sdo("6084h", d.m.write_u32(id, 0x6084, 0, a as u32))?;
-    sdo("607Ah", d.m.write_i32(id, 0x607A, 0, target as i32))?;
+    d.set_mode(1)?;
+    d.write_bytes("6081h", 0x6081, 0, &(v as u32).to_le_bytes())?;
+    d.write_bytes("6083h", 0x6083, 0, &(a as u32).to_le_bytes())?;
+    d.write_bytes("6084h", 0x6084, 0, &(a as u32).to_le_bytes())?;
+    d.write_bytes("607Ah", 0x607A, 0, &(target as i32).to_le_bytes())?;
     d.log(&format!(
         "profile position: target {} deg = {target} raw, 60 rpm = {v}, 60 rpm/s = {a} raw",
         options.target_deg
     ))?;
-    d.controlword(0x1F);
+    d.controlword(0x1F)?;
     d.wait_sw(0x1000, 0x1000, 1.0, "set-point acknowledge")?;
     d.log(&format!("new set-point (bit 4): acknowledged, statusword {:#06X}", d.statusword))?;
-    d.controlword(0x0F);
+    d.controlword(0x0F)?;
     let start = d.m.now();
     let mut next_log = start;
     loop {
@@ -372,7 +437,7 @@ pub fn run(options: &DemoOptions, out: &mut dyn Write) -> Result<DemoReport, Dem
     let report = DemoReport {
         virtual_us: d.m.now(),
         wall_s: wall.elapsed().as_secs_f64(),
-        frames_sent: d.m.frames_sent(),
+        frames_sent: d.m.frames_on_bus() - d.m.frames_received(),
         frames_received: d.m.frames_received(),
         homed_at_deg,
         final_deg,

@@ -112,8 +112,8 @@
 //! # let _ = app();
 //! ```
 //!
-//! Tests drive a device through real frames with [`master::Master`] on a
-//! [`Sim`](crate::node::Sim) (virtual time); `Sim::downcast` reaches the app
+//! Tests drive a device through real frames with `od-master` on a
+//! [`VirtualBus`](crate::node::VirtualBus) (virtual time); `Sim::downcast` reaches the app
 //! (`Node<Dictionary, Cia402App<Dictionary, MyDrive>>`) to change the mechanics
 //! ([`Drive::axis_mut`]) or the vendor state.
 
@@ -123,7 +123,6 @@ pub mod demo;
 pub mod drcs;
 pub mod drvi;
 pub mod machine;
-pub mod master;
 pub mod store;
 
 use std::sync::{Arc, Mutex, OnceLock};

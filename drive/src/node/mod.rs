@@ -69,6 +69,7 @@ mod params;
 mod retain;
 mod run;
 mod sim;
+mod virtual_bus;
 
 use std::any::Any;
 use std::collections::VecDeque;
@@ -84,6 +85,7 @@ pub use params::{DcfError, NodeStorage, ParameterSet};
 pub use retain::{FileRetain, MemoryRetain, Retain};
 pub use run::{Backoff, BusEvent, Clock, MonotonicClock, RunStats, run, run_reconnecting};
 pub use sim::Sim;
+pub use virtual_bus::{ADVANCE_STEP, STEP, Seen, VirtualBus};
 
 /// Events held between the device call that raised them and their delivery to the
 /// application. A single frame raises at most a few dozen (an RPDO of 64 one-bit entries);
@@ -295,6 +297,22 @@ where
         self.dev.od_mut()
     }
 
+    /// The value an SDO upload of `index`/`sub` carries, without the protocol: the
+    /// application's answer ([`DriveApp::on_upload`]) or else the dictionary's value, or the
+    /// abort code. For tests that hold a master's reads against the device's own values.
+    pub fn upload(&mut self, index: u16, sub: u8) -> Result<Vec<u8>, AbortCode> {
+        let mut buf = vec![0u8; 1 << 16];
+        let mut app = self.dev.app_mut().app.take();
+        let answer = app.as_mut().and_then(|a| a.on_upload(self.dev.od(), index, sub, &mut buf));
+        self.dev.app_mut().app = app;
+        let len = match answer {
+            Some(r) => r?,
+            None => self.dev.od().read(index, sub, &mut buf)?,
+        };
+        buf.truncate(len);
+        Ok(buf)
+    }
+
     /// The application (`None` only while it runs, which cannot be observed from outside).
     pub fn app(&self) -> Option<&A> {
         self.dev.app().app.as_ref()
@@ -343,6 +361,8 @@ pub trait AnyNode: Send + 'static {
     fn node_id(&self) -> NodeId;
     /// The NMT state.
     fn nmt_state(&self) -> NmtState;
+    /// [`Node::upload`].
+    fn upload(&mut self, index: u16, sub: u8) -> Result<Vec<u8>, AbortCode>;
     /// The concrete node, for tests that look inside (`downcast_ref::<Node<..>>()`).
     fn as_any(&self) -> &dyn Any;
     /// The concrete node, mutably.
@@ -369,6 +389,9 @@ where
     }
     fn nmt_state(&self) -> NmtState {
         self.dev.nmt_state()
+    }
+    fn upload(&mut self, index: u16, sub: u8) -> Result<Vec<u8>, AbortCode> {
+        Node::upload(self, index, sub)
     }
     fn as_any(&self) -> &dyn Any {
         self

@@ -9,8 +9,8 @@
 
 use crate::manual_frames;
 
+use crate::support::{Master, abort};
 use drive::drives::akd::{self, Akd, COUNTS_PER_TURN, FactorGroup, code};
-use drive::drives::master::{Master, SdoError};
 use drive::drives::{Cia402App, DeviceApps, sidecar};
 use drive::motion::Environment;
 use drive::node::{DeviceKind, Node, NodeConfig, NodeStorage, Sim};
@@ -604,7 +604,7 @@ fn modes_the_manual_lists_and_no_others() {
         m.set_mode(4, mode).unwrap();
     }
     for mode in [-1i8, 2, 5, 9, 10] {
-        assert_eq!(m.write(4, 0x6060, 0, &[mode as u8]), Err(SdoError::Abort(0x0609_0030)), "mode {mode}");
+        assert_eq!(m.write(4, 0x6060, 0, &[mode as u8]).map_err(abort), Err(Some(0x0609_0030)), "mode {mode}");
     }
     // 6502h as printed: 0x65 (pp, pv, hm, ip).
     assert_eq!(m.read_u32(4, 0x6502, 0).unwrap(), 0x65);
@@ -741,11 +741,11 @@ fn factor_group_workbench_units_ignore_the_ds402_factors() {
 fn factor_values_that_divide_by_zero_are_refused() {
     let mut m = started(4);
     for (index, sub) in [(0x204C, 1), (0x204C, 2), (0x608F, 1), (0x608F, 2), (0x6092, 1), (0x6092, 2)] {
-        assert_eq!(m.write_u32(4, index, sub, 0), Err(SdoError::Abort(0x0609_0030)), "{index:04X} sub {sub}");
+        assert_eq!(m.write_u32(4, index, sub, 0).map_err(abort), Err(Some(0x0609_0030)), "{index:04X} sub {sub}");
     }
     // A homing or profile speed above the motor's 6000 rpm: "value too high" (7.2.1.8).
-    assert_eq!(m.write_u32(4, 0x6099, 1, 101), Err(SdoError::Abort(0x0609_0031)));
-    assert_eq!(m.write_u32(4, 0x6081, 0, 101), Err(SdoError::Abort(0x0609_0031)));
+    assert_eq!(m.write_u32(4, 0x6099, 1, 101).map_err(abort), Err(Some(0x0609_0031)));
+    assert_eq!(m.write_u32(4, 0x6081, 0, 101).map_err(abort), Err(Some(0x0609_0031)));
     m.write_u32(4, 0x6099, 1, 100).unwrap();
 }
 
@@ -756,8 +756,8 @@ fn factor_values_that_divide_by_zero_are_refused() {
 fn the_older_ds402_factors_are_not_objects_of_this_drive() {
     let mut m = started(4);
     for index in [0x6093, 0x6094, 0x6097] {
-        assert_eq!(m.read_u32(4, index, 1), Err(SdoError::Abort(0x0602_0000)), "{index:04X}h");
-        assert_eq!(m.write_u32(4, index, 1, 36_000), Err(SdoError::Abort(0x0602_0000)), "{index:04X}h");
+        assert_eq!(m.read_u32(4, index, 1).map_err(abort), Err(Some(0x0602_0000)), "{index:04X}h");
+        assert_eq!(m.write_u32(4, index, 1, 36_000).map_err(abort), Err(Some(0x0602_0000)), "{index:04X}h");
     }
 }
 
@@ -838,7 +838,7 @@ fn every_homing_method_of_the_sidecar_completes() {
 fn homing_methods_outside_the_list_are_refused() {
     let mut m = started(4);
     for method in [3i8, 4, 7, 19, 37, -1] {
-        assert_eq!(m.write(4, 0x6098, 0, &[method as u8]), Err(SdoError::Abort(0x0609_0030)), "method {method}");
+        assert_eq!(m.write(4, 0x6098, 0, &[method as u8]).map_err(abort), Err(Some(0x0609_0030)), "method {method}");
     }
 }
 
@@ -1142,7 +1142,7 @@ fn a_profile_velocity_run_into_the_limit_is_fault_f107() {
     let p = m.read_i64(4, 0x6064, 0).unwrap();
     assert!(p <= 5000, "{p}");
     // 603Fh does not exist in the AKD: the code is in 1003h and the EMCY.
-    assert_eq!(m.read(4, 0x603F, 0), Err(SdoError::Abort(0x0602_0000)));
+    assert_eq!(m.read(4, 0x603F, 0).map_err(abort), Err(Some(0x0602_0000)));
     assert_eq!(m.read_u32(4, 0x1003, 1).unwrap() & 0xFFFF, 0x8580);
     // Fault reset (controlword bit 7), then back into range.
     m.controlword(4, 0x80).unwrap();

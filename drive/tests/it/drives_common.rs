@@ -4,8 +4,8 @@
 
 use std::sync::{Arc, Mutex};
 
+use crate::support::{Master, abort};
 use drive::drives::cia402::{BusScale, Plain, Vendor, read_int, scale_i64, write_int};
-use drive::drives::master::{Master, SdoError};
 use drive::drives::{Cia402App, DeviceApps, ErrorTable, Reaction, error_table, sidecar};
 use drive::motion::{Environment, Ratio};
 use drive::node::{DeviceKind, Node, NodeConfig, NodeStorage, Sim};
@@ -125,10 +125,10 @@ fn state_machine_walk_switches_the_power_stage() {
 #[test]
 fn unsupported_modes_and_homing_methods_are_refused() {
     let mut m = plain();
-    assert_eq!(m.write(ID, 0x6060, 0, &[2]), Err(SdoError::Abort(0x0609_0030)));
-    assert_eq!(m.write(ID, 0x6060, 0, &[0xFF]), Err(SdoError::Abort(0x0609_0030)), "-1 is not CiA 402");
+    assert_eq!(m.write(ID, 0x6060, 0, &[2]).map_err(abort), Err(Some(0x0609_0030)));
+    assert_eq!(m.write(ID, 0x6060, 0, &[0xFF]).map_err(abort), Err(Some(0x0609_0030)), "-1 is not CiA 402");
     m.set_mode(ID, 1).unwrap();
-    assert_eq!(m.write(ID, 0x6098, 0, &[36]), Err(SdoError::Abort(0x0609_0030)));
+    assert_eq!(m.write(ID, 0x6098, 0, &[36]).map_err(abort), Err(Some(0x0609_0030)));
     m.write(ID, 0x6098, 0, &[35]).unwrap();
 }
 

@@ -3,8 +3,8 @@
 
 use crate::manual_frames;
 
+use crate::support::{Master, abort};
 use drive::drives::akd::{self, Akd};
-use drive::drives::master::{Master, SdoError};
 use drive::drives::{Cia402App, DeviceApps};
 use drive::node::{DeviceKind, Node, NodeConfig, NodeStorage, Sim};
 use manual_frames::{got, sdo};
@@ -70,9 +70,9 @@ fn akd_homing_with_the_default_speeds_completes() {
 fn akd_homing_method_0_is_the_default_and_can_be_written_back() {
     let mut m = akd(3);
     assert_eq!(m.read_u8(3, 0x6098, 0).unwrap(), 0);
-    assert_eq!(m.write(3, 0x6098, 0, &[0]), Ok(()));
+    m.write(3, 0x6098, 0, &[0]).unwrap();
     for reserved in [3u8, 36, 0x80] {
-        assert_eq!(m.write(3, 0x6098, 0, &[reserved]), Err(SdoError::Abort(0x0609_0030)), "{reserved}");
+        assert_eq!(m.write(3, 0x6098, 0, &[reserved]).map_err(abort), Err(Some(0x0609_0030)), "{reserved}");
     }
     m.switch_on(3).unwrap();
     m.set_mode(3, 6).unwrap();

@@ -7,8 +7,8 @@
 
 use std::sync::{Arc, Mutex};
 
+use crate::support::{Master, abort};
 use drive::drives::drcs::{self, Drcs, Mechanics, code, input, output};
-use drive::drives::master::{Master, SdoError};
 use drive::drives::{Cia402App, DeviceApps};
 use drive::node::{DeviceKind, Node, NodeConfig, NodeStorage, Sim};
 use drive::trace::Trace;
@@ -293,10 +293,10 @@ fn state_machine_to_operation_enabled_and_back() {
     assert_eq!(m.read_u64(ID, 0x2005, 0).unwrap(), 1);
     assert_eq!(m.read_u32(ID, 0x2003, 0).unwrap() & output::READY, 0);
     // Modes and homing methods the manual does not list are refused.
-    assert_eq!(m.write_u8(ID, 0x6060, 0, 4), Err(SdoError::Abort(0x0609_0030)));
-    assert_eq!(m.write_u8(ID, 0x6060, 0, 7), Err(SdoError::Abort(0x0609_0030)));
+    assert_eq!(m.write_u8(ID, 0x6060, 0, 4).map_err(abort), Err(Some(0x0609_0030)));
+    assert_eq!(m.write_u8(ID, 0x6060, 0, 7).map_err(abort), Err(Some(0x0609_0030)));
     for method in [1u8, 2, 35, 0xFF] {
-        assert_eq!(m.write_u8(ID, 0x6098, 0, method), Err(SdoError::Abort(0x0609_0030)), "method {method}");
+        assert_eq!(m.write_u8(ID, 0x6098, 0, method).map_err(abort), Err(Some(0x0609_0030)), "method {method}");
     }
     for method in [17u8, 18, 37] {
         m.write_u8(ID, 0x6098, 0, method).unwrap();
@@ -684,8 +684,8 @@ fn feed_converter_examples_of_chapter_4() {
     assert_eq!(position(&mut m), 100);
     assert_eq!(m.read_i64(ID, 0x607D, 2).unwrap(), 394, "1000 mm full scale × 100/254");
     // 0 is not a ratio.
-    assert_eq!(m.write_u32(ID, 0x2001, 1, 0), Err(SdoError::Abort(0x0609_0030)));
-    assert_eq!(m.write_u32(ID, 0x2001, 2, 0), Err(SdoError::Abort(0x0609_0030)));
+    assert_eq!(m.write_u32(ID, 0x2001, 1, 0).map_err(abort), Err(Some(0x0609_0030)));
+    assert_eq!(m.write_u32(ID, 0x2001, 2, 0).map_err(abort), Err(Some(0x0609_0030)));
 
     // Only motor: degrees; 888/100 gives microsteps, and "to perform a complete motor
     // revolution, set a position of 3200 µstep" (3200 / 8.88 = 360.36°).
@@ -761,7 +761,7 @@ fn software_limit_violation_is_error_7320h_and_the_motor_does_not_move() {
     enabled_and_homed_17(&mut m);
     assert_eq!(m.read_i64(ID, 0x607D, 1).unwrap(), 0);
     assert_eq!(m.read_i64(ID, 0x607D, 2).unwrap(), 1000);
-    assert_eq!(m.write_i32(ID, 0x607D, 2, 2000), Err(SdoError::Abort(0x0601_0002)), "set by QSet");
+    assert_eq!(m.write_i32(ID, 0x607D, 2, 2000).map_err(abort), Err(Some(0x0601_0002)), "set by QSet");
     move_to(&mut m, 900, false);
     emcys(&mut m);
     // Absolute beyond the full scale.
@@ -898,7 +898,7 @@ fn flash_data_lost_is_reported_after_reset_node() {
 #[test]
 fn life_guarding_loss_quick_stops_then_resets_the_communication() {
     let mut m = drcs();
-    assert_eq!(m.read(ID, 0x1016, 1), Err(SdoError::Abort(0x0602_0000)), "no heartbeat consumer");
+    assert_eq!(m.read(ID, 0x1016, 1).map_err(abort), Err(Some(0x0602_0000)), "no heartbeat consumer");
     enabled_and_homed(&mut m);
     m.set_mode(ID, 3).unwrap();
     m.write_i32(ID, 0x60FF, 0, 100).unwrap();
@@ -979,12 +979,12 @@ fn brake_follows_the_power_stage_and_is_released_by_hand_only_torqueless() {
     m.switch_on(ID).unwrap();
     assert_eq!(m.read_u64(ID, 0x2005, 0).unwrap(), 0);
     assert!(!app(&m).drive().axis().status().brake);
-    assert_eq!(m.write_u8(ID, 0x2005, 0, 1), Err(SdoError::Abort(0x0800_0022)), "not with torque");
+    assert_eq!(m.write_u8(ID, 0x2005, 0, 1).map_err(abort), Err(Some(0x0800_0022)), "not with torque");
     m.controlword(ID, 0x06).unwrap();
     m.advance(2000);
     assert_eq!(m.read_u64(ID, 0x2005, 0).unwrap(), 1);
     // Released by hand while torqueless; 2 is no brake state.
-    assert_eq!(m.write_u8(ID, 0x2005, 0, 2), Err(SdoError::Abort(0x0609_0030)));
+    assert_eq!(m.write_u8(ID, 0x2005, 0, 2).map_err(abort), Err(Some(0x0609_0030)));
     m.write_u8(ID, 0x2005, 0, 0).unwrap();
     m.advance(2000);
     assert_eq!(m.read_u64(ID, 0x2005, 0).unwrap(), 0);
@@ -1030,7 +1030,7 @@ fn counters_advance_with_the_virtual_clock_and_the_axis() {
     let counted = c.torqueless_us + c.stopped_us + c.moving_us - c0.torqueless_us;
     assert!(m.now() - counted <= 2_000, "every tick is counted once: {counted} of {}", m.now());
     // Read-only, and they survive a reset node ("since it left the factory").
-    assert_eq!(m.write_u32(ID, 0x2103, 0, 0), Err(SdoError::Abort(0x0601_0002)));
+    assert_eq!(m.write_u32(ID, 0x2103, 0, 0).map_err(abort), Err(Some(0x0601_0002)));
     m.nmt(0x81, ID);
     m.advance(5000);
     assert_eq!(m.read_u32(ID, 0x2103, 0).unwrap(), 20);
@@ -1051,7 +1051,7 @@ fn inputs_and_outputs() {
     m.advance(2000);
     assert_eq!(m.read_u32(ID, 0x2002, 0).unwrap(), 0b1000_0101 | input::STROBE | input::PROXY_EXT);
     assert_eq!(m.read_u32(ID, 0x2003, 0).unwrap(), output::OUT);
-    assert_eq!(m.write_u32(ID, 0x2003, 0, 0), Err(SdoError::Abort(0x0601_0002)), "read-only");
+    assert_eq!(m.write_u32(ID, 0x2003, 0, 0).map_err(abort), Err(Some(0x0601_0002)), "read-only");
     vendor_mut(&mut m).conditions = drcs::Conditions::default();
     enabled_and_homed(&mut m);
     assert_eq!(m.read_u32(ID, 0x2003, 0).unwrap(), output::READY | output::HOMING_OK | output::POS_OK);
@@ -1077,7 +1077,7 @@ fn save_stores_the_manual_list_only_and_restore_brings_defaults() {
     m.write_u8(ID, 0x6060, 0, 1).unwrap(); // not in the list
     m.write_i32(ID, 0x607A, 0, 55).unwrap(); // not in the list
     m.write_u32(ID, 0x1010, 1, 0x6576_6173).unwrap();
-    assert_eq!(m.write_u32(ID, 0x1010, 1, 0x1234), Err(SdoError::Abort(0x0800_0020)), "wrong signature");
+    assert_eq!(m.write_u32(ID, 0x1010, 1, 0x1234).map_err(abort), Err(Some(0x0800_0020)), "wrong signature");
     m.write_u32(ID, 0x6081, 0, 1).unwrap();
     m.nmt(0x81, ID);
     m.advance(5000);
@@ -1132,7 +1132,7 @@ fn saved_parameters_survive_a_restart_with_a_state_directory() {
 fn nmt_startup_1f80h() {
     let mut m = drcs();
     assert_eq!(m.read_u32(ID, 0x1F80, 0).unwrap(), 4);
-    assert_eq!(m.write_u32(ID, 0x1F80, 0, 0x02), Err(SdoError::Abort(0x0609_0030)), "unmanaged bit");
+    assert_eq!(m.write_u32(ID, 0x1F80, 0, 0x02).map_err(abort), Err(Some(0x0609_0030)), "unmanaged bit");
     // Bit 3 with bit 2 clear: the node starts by itself after a reset.
     m.write_u32(ID, 0x1F80, 0, 0x08).unwrap();
     m.write_u16(ID, 0x1017, 0, 50).unwrap();
@@ -1187,8 +1187,8 @@ fn error_table_is_the_manual_list_plus_the_fieldbus_disconnection() {
 #[test]
 fn quick_stop_ramps_on_the_profile_deceleration() {
     let mut m = drcs();
-    assert_eq!(m.read(ID, 0x605A, 0), Err(SdoError::Abort(0x0602_0000)));
-    assert_eq!(m.read(ID, 0x6085, 0), Err(SdoError::Abort(0x0602_0000)));
+    assert_eq!(m.read(ID, 0x605A, 0).map_err(abort), Err(Some(0x0602_0000)));
+    assert_eq!(m.read(ID, 0x6085, 0).map_err(abort), Err(Some(0x0602_0000)));
     enabled_and_homed(&mut m);
     m.set_mode(ID, 3).unwrap();
     m.write_u32(ID, 0x6084, 0, 200).unwrap();

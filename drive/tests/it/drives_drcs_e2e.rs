@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use generated::drcs::Dictionary;
 use generated::drcs::units::{Dimension, Quantity, Ratio, Unit, Units};
-use od_bus::{CanFrame, Endpoint, SocketcandClient};
+use od_bus::CanFrame;
 
 use crate::drive_sim::DriveSim;
 
@@ -23,45 +23,30 @@ fn start_drcs(extra: &[&str]) -> DriveSim {
     DriveSim::start(&args)
 }
 
-/// A master with expedited SDO over the socketcand client.
+/// od-master (its blocking facade) on the hub, talking to node 3.
 struct Master {
-    bus: SocketcandClient,
+    bus: od_master::blocking::Bus,
+    node: od_master::blocking::Node,
 }
 
 impl Master {
     fn connect(sim: &DriveSim) -> Self {
-        Self { bus: SocketcandClient::connect(sim.addr, "can0").unwrap() }
-    }
-
-    fn exchange(&mut self, request: [u8; 8]) -> [u8; 8] {
-        self.bus.send(CanFrame::standard(0x600 + u32::from(ID), &request).unwrap()).unwrap();
-        let deadline = Instant::now() + WAIT;
-        loop {
-            let left = deadline.saturating_duration_since(Instant::now());
-            assert!(!left.is_zero(), "no SDO response to {request:02X?}");
-            if let Some(f) = self.bus.recv_timeout(left).unwrap()
-                && f.id() == 0x580 + u32::from(ID)
-            {
-                return f.raw_data();
-            }
-        }
+        let (bus, node) = crate::support::on_hub(sim.addr, ID, WAIT);
+        Self { bus, node }
     }
 
     fn write(&mut self, index: u16, sub: u8, value: i64, len: usize) {
-        let [lo, hi] = index.to_le_bytes();
-        let mut req = [0x23 | (((4 - len) as u8) << 2), lo, hi, sub, 0, 0, 0, 0];
-        req[4..4 + len].copy_from_slice(&value.to_le_bytes()[..len]);
-        let r = self.exchange(req);
-        assert_eq!(r, [0x60, lo, hi, sub, 0, 0, 0, 0], "download {index:04X}h/{sub}");
+        let data = &value.to_le_bytes()[..len];
+        self.node.write_bytes(index, sub, data).unwrap_or_else(|e| panic!("download {index:04X}h/{sub}: {e}"));
     }
 
+    /// The value, sign-extended when it has 4 bytes.
     fn read(&mut self, index: u16, sub: u8) -> i64 {
-        let [lo, hi] = index.to_le_bytes();
-        let r = self.exchange([0x40, lo, hi, sub, 0, 0, 0, 0]);
-        assert_eq!(r[0] & 0xE3, 0x43, "upload {index:04X}h/{sub}: {r:02X?}");
-        let n = 4 - usize::from((r[0] >> 2) & 3);
-        let mut b = if r[3 + n] & 0x80 != 0 && n == 4 { [0xFF; 8] } else { [0; 8] };
-        b[..n].copy_from_slice(&r[4..4 + n]);
+        let d = self.node.read_bytes(index, sub).unwrap_or_else(|e| panic!("upload {index:04X}h/{sub}: {e}"));
+        let n = d.len();
+        assert!((1..=4).contains(&n), "upload {index:04X}h/{sub}: {d:02X?}");
+        let mut b = if d[n - 1] & 0x80 != 0 && n == 4 { [0xFF; 8] } else { [0; 8] };
+        b[..n].copy_from_slice(&d);
         i64::from_le_bytes(b)
     }
 

@@ -4,8 +4,8 @@
 
 use std::sync::{Arc, Mutex};
 
+use crate::support::{Master, abort};
 use drive::drives::drvi::{self, Drvi, warning};
-use drive::drives::master::{Master, SdoError};
 use drive::drives::{Cia402App, SharedTrace, Vendor};
 use drive::motion::{Cam, Environment, Machine, Ratio as Ratio1};
 use drive::node::{MemoryRetain, Node, NodeStorage, ParameterSet, Sim};
@@ -282,10 +282,10 @@ fn jog_with_controlword_bits_5_and_6() {
 fn unsupported_modes_and_methods_are_refused() {
     let mut m = master();
     for mode in [2u8, 5, 7, 8, 0xFE] {
-        assert_eq!(m.write(ID, 0x6060, 0, &[mode]), Err(SdoError::Abort(0x0609_0030)), "mode {mode}");
+        assert_eq!(m.write(ID, 0x6060, 0, &[mode]).map_err(abort), Err(Some(0x0609_0030)), "mode {mode}");
     }
     for method in [3u8, 19, 33, 35, 0xFB] {
-        assert_eq!(m.write(ID, 0x6098, 0, &[method]), Err(SdoError::Abort(0x0609_0030)), "method {method}");
+        assert_eq!(m.write(ID, 0x6098, 0, &[method]).map_err(abort), Err(Some(0x0609_0030)), "method {method}");
     }
 }
 
@@ -748,7 +748,7 @@ fn zero_terms_of_the_screw_and_the_feed_converter_are_refused() {
     let mut m = actuator(100, (0, 0));
     for (index, sub) in [(0x6092, 1), (0x6092, 2), (0x2001, 1), (0x2001, 2)] {
         let before = m.read_u32(ID, index, sub).unwrap();
-        assert_eq!(m.write_u32(ID, index, sub, 0), Err(SdoError::Abort(0x0609_0030)), "{index:04X}h sub {sub}");
+        assert_eq!(m.write_u32(ID, index, sub, 0).map_err(abort), Err(Some(0x0609_0030)), "{index:04X}h sub {sub}");
         assert_eq!(m.read_u32(ID, index, sub).unwrap(), before);
     }
     m.write_u32(ID, 0x6091, 1, 0).unwrap();
@@ -1007,7 +1007,7 @@ fn inputs_2002h_and_the_output_2003h() {
     m.advance(2000);
     assert_eq!(m.read_u32(ID, 0x2002, 0).unwrap() & 0b11, 0b10);
     for index in [0x2002, 0x2004, 0x2006] {
-        assert_eq!(m.write_u32(ID, index, 0, 1).map_err(|e| e.to_string()), Err("SDO abort 0x06010002".into()));
+        assert_eq!(m.write_u32(ID, index, 0, 1).map_err(abort), Err(Some(0x0601_0002)), "{index:04X}h");
     }
     m.write_u32(ID, 0x2003, 0, 1).unwrap();
     assert_eq!(m.read_u32(ID, 0x2003, 0).unwrap(), 1, "OUT high");

@@ -16,27 +16,39 @@ use od_runtime::od::ObjectDictionary;
 
 const WAIT: Duration = Duration::from_secs(10);
 
-fn sdo(bus: &mut SocketcandClient, data: [u8; 8]) -> [u8; 8] {
-    bus.send(CanFrame::standard(0x602, &data).unwrap()).unwrap();
-    next_with_id(bus, 0x582, WAIT).expect("SDO response").raw_data()
+/// od-master (its blocking facade) on the hub, talking to the DRVI (node 2).
+struct Hub {
+    bus: od_master::blocking::Bus,
+    node: od_master::blocking::Node,
 }
 
-fn write(bus: &mut SocketcandClient, index: u16, sub: u8, value: u32, len: u8) {
-    let v = value.to_le_bytes();
-    let cmd = 0x23 | ((4 - len) << 2);
-    let r = sdo(bus, [cmd, index as u8, (index >> 8) as u8, sub, v[0], v[1], v[2], v[3]]);
-    assert_eq!(r[0], 0x60, "download {index:04X}sub{sub}: {r:02X?}");
+impl Hub {
+    fn connect(addr: std::net::SocketAddr) -> Self {
+        let (bus, node) = crate::support::on_hub(addr, 2, WAIT);
+        Self { bus, node }
+    }
+
+    /// A frame of the test's own, put on the bus as it is.
+    fn send(&mut self, frame: CanFrame) -> Result<(), od_master::Error> {
+        self.bus.send(frame)
+    }
 }
 
-fn statusword(bus: &mut SocketcandClient) -> u16 {
-    let r = sdo(bus, [0x40, 0x41, 0x60, 0, 0, 0, 0, 0]);
-    u16::from_le_bytes([r[4], r[5]])
+fn write(bus: &mut Hub, index: u16, sub: u8, value: u32, len: u8) {
+    let data = &value.to_le_bytes()[..usize::from(len)];
+    bus.node.write_bytes(index, sub, data).unwrap_or_else(|e| panic!("download {index:04X}sub{sub}: {e}"));
+}
+
+fn statusword(bus: &mut Hub) -> u16 {
+    bus.node.read::<u16>(0x6041, 0).expect("6041h")
 }
 
 #[test]
 fn a_master_lost_by_node_guarding_quick_stops_the_drvi_into_fault() {
     let sim = DriveSim::start(&["run", "--device", "drvi", "--node-id", "2", "--listen", "127.0.0.1:0"]);
-    let mut bus = SocketcandClient::connect(sim.addr, "can0").unwrap();
+    // The guarding master's remote frames, and the EMCY, on a raw client of the hub.
+    let mut raw = SocketcandClient::connect(sim.addr, "can0").unwrap();
+    let mut bus = Hub::connect(sim.addr);
     write(&mut bus, 0x100C, 0, 50, 2); // guard time 50 ms
     write(&mut bus, 0x100D, 0, 3, 1); // life time factor 3
     for cw in [0x06, 0x07, 0x0F] {
@@ -47,12 +59,12 @@ fn a_master_lost_by_node_guarding_quick_stops_the_drvi_into_fault() {
     write(&mut bus, 0x6084, 0, 600, 4);
     write(&mut bus, 0x60FF, 0, 3000, 4); // 30 rpm
     for _ in 0..10 {
-        bus.send(CanFrame::remote(0x702, false, 1).unwrap()).unwrap();
-        assert!(next_with_id(&mut bus, 0x702, WAIT).is_some(), "guarding reply");
+        raw.send(CanFrame::remote(0x702, false, 1).unwrap()).unwrap();
+        assert!(next_with_id(&mut raw, 0x702, WAIT).is_some(), "guarding reply");
         std::thread::sleep(Duration::from_millis(30));
     }
     assert_eq!(statusword(&mut bus) & 0x6F, 0x27, "still operation enabled while guarded");
-    let emcy = next_with_id(&mut bus, 0x082, Duration::from_secs(3)).expect("EMCY for the lost master");
+    let emcy = next_with_id(&mut raw, 0x082, Duration::from_secs(3)).expect("EMCY for the lost master");
     assert_eq!(emcy.data(), [0x30, 0x81, 0x11, 0, 0, 0, 0, 0], "8130h, communication bit");
     // A soft error: a quick stop ramp (30 rpm at 600 rpm/s: 50 ms), then Fault.
     let deadline = Instant::now() + WAIT;
@@ -60,8 +72,7 @@ fn a_master_lost_by_node_guarding_quick_stops_the_drvi_into_fault() {
         assert!(Instant::now() < deadline, "no Fault");
         std::thread::sleep(Duration::from_millis(10));
     }
-    let r = sdo(&mut bus, [0x40, 0x3F, 0x60, 0, 0, 0, 0, 0]);
-    assert_eq!(u16::from_le_bytes([r[4], r[5]]), 0x8130, "603Fh");
+    assert_eq!(read(&mut bus, 0x603F, 0), 0x8130, "603Fh");
     let (ok, log) = sim.stop();
     assert!(ok, "{log}");
 }
@@ -87,7 +98,7 @@ fn run_writes_the_trace_and_the_plot_when_stopped() {
         "--trace-interval-ms",
         "1",
     ]);
-    let mut bus = SocketcandClient::connect(sim.addr, "can0").unwrap();
+    let mut bus = Hub::connect(sim.addr);
     for cw in [0x06, 0x07, 0x0F] {
         write(&mut bus, 0x6040, 0, cw, 2);
     }
@@ -163,11 +174,13 @@ fn demo_refuses_devices_without_one() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("unknown device"));
 }
 
-fn read(bus: &mut SocketcandClient, index: u16, sub: u8) -> u32 {
-    let [lo, hi] = index.to_le_bytes();
-    let r = sdo(bus, [0x40, lo, hi, sub, 0, 0, 0, 0]);
-    assert_eq!(r[0] & 0xE3, 0x43, "upload {index:04X}h/{sub}: {r:02X?}");
-    u32::from_le_bytes([r[4], r[5], r[6], r[7]])
+/// A value of up to 4 bytes.
+fn read(bus: &mut Hub, index: u16, sub: u8) -> u32 {
+    let d = bus.node.read_bytes(index, sub).unwrap_or_else(|e| panic!("upload {index:04X}h/{sub}: {e}"));
+    assert!((1..=4).contains(&d.len()), "upload {index:04X}h/{sub}: {d:02X?}");
+    let mut b = [0u8; 4];
+    b[..d.len()].copy_from_slice(&d);
+    u32::from_le_bytes(b)
 }
 
 /// 1010h under SIGKILL on the DRVI (issue #7 point 5): a drive-sim killed at any moment of a
@@ -181,7 +194,7 @@ fn a_kill_during_save_never_leaves_a_torn_parameter_set() {
     let state = dir.to_str().unwrap().to_owned();
     let args = ["run", "--device", "drvi", "--node-id", "2", "--listen", "127.0.0.1:0", "--state-dir", state.as_str()];
     // Two objects per area of the sidecar's [store] list (1000h, 2000h, 6000h).
-    let write_generation = |bus: &mut SocketcandClient, g: u32| {
+    let write_generation = |bus: &mut Hub, g: u32| {
         write(bus, 0x1017, 0, g, 2);
         write(bus, 0x1015, 0, g + 1, 2);
         write(bus, 0x2001, 1, g, 4);
@@ -189,7 +202,7 @@ fn a_kill_during_save_never_leaves_a_torn_parameter_set() {
         write(bus, 0x6081, 0, g, 4);
         write(bus, 0x6083, 0, g + 1, 4);
     };
-    let save = |bus: &mut SocketcandClient, confirmed: bool| {
+    let save = |bus: &mut Hub, confirmed: bool| {
         if confirmed {
             write(bus, 0x1010, 1, 0x6576_6173, 4);
         } else {
@@ -198,7 +211,7 @@ fn a_kill_during_save_never_leaves_a_torn_parameter_set() {
         }
     };
     let sim = DriveSim::start(&args);
-    let mut bus = SocketcandClient::connect(sim.addr, "can0").unwrap();
+    let mut bus = Hub::connect(sim.addr);
     write_generation(&mut bus, 1);
     save(&mut bus, true);
     drop(bus);
@@ -206,7 +219,7 @@ fn a_kill_during_save_never_leaves_a_torn_parameter_set() {
     let (mut saved, mut attempted, mut seen_new, mut confirmed) = ([1u32; 3], 1u32, 0, false);
     for round in 0..24u64 {
         let sim = DriveSim::start(&args);
-        let mut bus = SocketcandClient::connect(sim.addr, "can0").unwrap();
+        let mut bus = Hub::connect(sim.addr);
         let found = [
             ("1000h", read(&mut bus, 0x1017, 0), read(&mut bus, 0x1015, 0)),
             ("2000h", read(&mut bus, 0x2001, 1), read(&mut bus, 0x2001, 2)),
@@ -238,7 +251,7 @@ fn a_kill_during_save_never_leaves_a_torn_parameter_set() {
 
 /// The generated units (`generated::drvi::units`) for the 2014h, 2001h, 6091h and 6092h the
 /// drive reports.
-fn units(bus: &mut SocketcandClient) -> Units {
+fn units(bus: &mut Hub) -> Units {
     let mut od = Dictionary::new(2);
     od.set_actuator_type(read(bus, 0x2014, 0) as u8).unwrap();
     for (index, sub) in [(0x2001, 1), (0x2001, 2), (0x6091, 1), (0x6091, 2), (0x6092, 1), (0x6092, 2)] {
@@ -247,16 +260,16 @@ fn units(bus: &mut SocketcandClient) -> Units {
     Units::from_dictionary(&od).unwrap()
 }
 
-fn to_raw(bus: &mut SocketcandClient, d: Dimension, q: Quantity) -> u32 {
+fn to_raw(bus: &mut Hub, d: Dimension, q: Quantity) -> u32 {
     units(bus).to_raw(d, q).unwrap() as i32 as u32
 }
 
-fn position(bus: &mut SocketcandClient) -> Quantity {
+fn position(bus: &mut Hub) -> Quantity {
     let raw = i64::from(read(bus, 0x6064, 0) as i32);
     units(bus).to_physical(Dimension::Position, raw).unwrap()
 }
 
-fn wait_statusword(bus: &mut SocketcandClient, mask: u16, value: u16) {
+fn wait_statusword(bus: &mut Hub, mask: u16, value: u16) {
     let deadline = Instant::now() + WAIT;
     loop {
         let sw = statusword(bus);
@@ -268,7 +281,7 @@ fn wait_statusword(bus: &mut SocketcandClient, mask: u16, value: u16) {
     }
 }
 
-fn move_to(bus: &mut SocketcandClient, target: Quantity, relative: bool) {
+fn move_to(bus: &mut Hub, target: Quantity, relative: bool) {
     let raw = to_raw(bus, Dimension::Position, target);
     write(bus, 0x607A, 0, raw, 4);
     let rel = if relative { 0x40 } else { 0 };
@@ -291,7 +304,7 @@ fn q(n: i128, d: i128, unit: Unit) -> Quantity {
 fn moves_in_physical_units_through_the_generated_units_over_the_hub() {
     use Dimension::{Acceleration, Position, Velocity};
     let sim = DriveSim::start(&["run", "--device", "drvi", "--node-id", "2", "--listen", "127.0.0.1:0"]);
-    let mut bus = SocketcandClient::connect(sim.addr, "can0").unwrap();
+    let mut bus = Hub::connect(sim.addr);
     for cw in [0x06, 0x07, 0x0F] {
         write(&mut bus, 0x6040, 0, cw, 2);
     }

@@ -63,25 +63,14 @@ impl Drop for Process {
     }
 }
 
-fn next_with_id(bus: &mut SocketcandClient, id: u32) -> CanFrame {
-    let deadline = Instant::now() + WAIT;
-    loop {
-        let left = deadline.saturating_duration_since(Instant::now());
-        match bus.recv_timeout(left).unwrap() {
-            Some(f) if f.id() == id => return f,
-            Some(_) => continue,
-            None => panic!("no frame with id {id:#x}"),
-        }
-    }
+/// od-master on the hub at `addr`, channel `channel`.
+fn master(addr: &str, channel: &str) -> od_master::blocking::Bus {
+    crate::support::hub_master(addr, channel, WAIT)
 }
 
-fn upload_expedited(bus: &mut SocketcandClient, node: u32, index: u16) -> Vec<u8> {
-    bus.send(CanFrame::standard(0x600 + node, &[0x40, index as u8, (index >> 8) as u8, 0, 0, 0, 0, 0]).unwrap())
-        .unwrap();
-    let reply = next_with_id(bus, 0x580 + node);
-    let d = reply.data();
-    assert_eq!(d[0] & 0xF3, 0x43, "{reply}");
-    d[4..8 - usize::from((d[0] >> 2) & 3)].to_vec()
+/// Sub-index 0 of `index` on `node`, read by od-master.
+fn upload(bus: &od_master::blocking::Bus, node: u8, index: u16) -> Vec<u8> {
+    bus.node(node).unwrap().read_bytes(index, 0).unwrap_or_else(|e| panic!("upload {index:04X}h: {e}"))
 }
 
 #[test]
@@ -94,22 +83,16 @@ fn a_device_joins_a_hub_with_bus_and_stops_on_sigint() {
     // The first thing on the bus is its boot-up.
     let first = master.recv_timeout(WAIT).unwrap().unwrap();
     assert_eq!(first.to_string(), "705#00");
-    assert_eq!(upload_expedited(&mut master, 5, 0x1008), b"M006");
+    assert_eq!(upload(&self::master(&hub.ready, "line1"), 5, 0x1008), b"M006");
     run.signal(libc::SIGINT);
     let (status, log) = run.wait();
     assert!(status.success(), "{status}: {log}");
     assert!(log.contains("SIGINT, stopping"), "{log}");
 }
 
-fn download_u32(bus: &mut SocketcandClient, node: u32, index: u16, sub: u8, value: u32) {
-    let v = value.to_le_bytes();
-    bus.send(
-        CanFrame::standard(0x600 + node, &[0x23, index as u8, (index >> 8) as u8, sub, v[0], v[1], v[2], v[3]])
-            .unwrap(),
-    )
-    .unwrap();
-    let reply = next_with_id(bus, 0x580 + node);
-    assert_eq!(reply.data()[0], 0x60, "{reply}");
+/// `value` written to `index`/`sub` of `node` by od-master.
+fn download_u32(bus: &od_master::blocking::Bus, node: u8, index: u16, sub: u8, value: u32) {
+    bus.node(node).unwrap().write(index, sub, value).unwrap_or_else(|e| panic!("download {index:04X}h: {e}"));
 }
 
 #[test]
@@ -118,9 +101,9 @@ fn a_device_whose_hub_goes_away_keeps_its_state_and_reconnects() {
     let address = hub.ready.clone();
     let spec = format!("tcp://{address}");
     let mut run = Process::start(&["run", "--device", "drcs", "--node-id", "3", "--bus", &spec], "running on ");
-    let mut master = SocketcandClient::connect(address.as_str(), "can0").unwrap();
-    download_u32(&mut master, 3, 0x6083, 0, 4321); // not saved: only the running device has it
-    drop(master);
+    let od = master(&address, "can0");
+    download_u32(&od, 3, 0x6083, 0, 4321); // not saved: only the running device has it
+    drop(od);
     hub.signal(libc::SIGTERM);
     assert!(hub.wait().0.success());
     std::thread::sleep(Duration::from_millis(300));
@@ -128,17 +111,17 @@ fn a_device_whose_hub_goes_away_keeps_its_state_and_reconnects() {
 
     // A hub on the same address: the device comes back by itself, with its state.
     let _hub = Process::start(&["hub", "--listen", &address, "--quiet"], "listening on ");
-    let mut master = SocketcandClient::connect(address.as_str(), "can0").unwrap();
+    let od = master(&address, "can0");
+    let short = od_master::SdoOptions { timeout: Duration::from_millis(200), retries: 0, ..Default::default() };
+    let drcs = od.node(3).unwrap().with_options(short);
     let deadline = Instant::now() + Duration::from_secs(30);
     let value = loop {
         assert!(Instant::now() < deadline, "the device did not come back");
-        master.send(CanFrame::standard(0x603, &[0x40, 0x83, 0x60, 0, 0, 0, 0, 0]).unwrap()).unwrap();
-        match master.recv_timeout(Duration::from_millis(200)).unwrap() {
-            Some(f) if f.id() == 0x583 => break f.data()[4..8].to_vec(),
-            _ => {}
+        if let Ok(v) = drcs.read::<u32>(0x6083, 0) {
+            break v;
         }
     };
-    assert_eq!(value, 4321u32.to_le_bytes());
+    assert_eq!(value, 4321);
     run.signal(libc::SIGTERM);
     let (status, log) = run.wait();
     assert!(status.success(), "{status}: {log}");
@@ -161,9 +144,12 @@ fn saves_killed_at_random_moments_never_mix_two_saves_nor_lose_a_confirmed_one()
     // The last round only checks what the kill of the one before left.
     for round in 1..=rounds + 1 {
         let mut run = Process::start(&args, "listening on ");
+        // od-master for the reads and writes; the save goes on a raw client, whose stream
+        // shows whether its answer came before the kill.
+        let od = master(&run.ready, "can0");
         let mut bus = SocketcandClient::connect(run.ready.as_str(), "can0").unwrap();
-        let acc = u32::from_le_bytes(upload_expedited(&mut bus, 2, 0x6083).try_into().unwrap());
-        let hb = upload_expedited(&mut bus, 2, 0x1017);
+        let acc = u32::from_le_bytes(upload(&od, 2, 0x6083).try_into().unwrap());
+        let hb = upload(&od, 2, 0x1017);
         let hb = u32::from(u16::from_le_bytes(hb.try_into().unwrap()));
         // 6083h (application area) = 1000 + g and 1017h (communication area) = 100 + g were
         // saved together: both from one generation g, or nothing saved yet.
@@ -183,9 +169,8 @@ fn saves_killed_at_random_moments_never_mix_two_saves_nor_lose_a_confirmed_one()
             break;
         }
         written = round;
-        download_u32(&mut bus, 2, 0x6083, 0, 1000 + round);
-        bus.send(CanFrame::standard(0x602, &[0x2B, 0x17, 0x10, 0, (100 + round) as u8, 0, 0, 0]).unwrap()).unwrap();
-        assert_eq!(next_with_id(&mut bus, 0x582).data()[0], 0x60);
+        download_u32(&od, 2, 0x6083, 0, 1000 + round);
+        od.node(2).unwrap().write(0x1017, 0, (100 + round) as u16).expect("1017h");
         bus.send(CanFrame::standard(0x602, &[0x23, 0x10, 0x10, 0x01, b's', b'a', b'v', b'e']).unwrap()).unwrap();
         seed ^= seed << 13;
         seed ^= seed >> 17;
@@ -227,10 +212,12 @@ fn several_devices_in_one_process_share_its_hub() {
         ],
         "listening on ",
     );
+    let od = self::master(&run.ready, "axes");
+    assert_eq!(upload(&od, 2, 0x1008), b"DRVI");
+    assert_eq!(upload(&od, 3, 0x1008), b"DRCS");
+    assert_eq!(upload(&od, 4, 0x1008), b"M006");
+    // The boot-ups on a raw client that joins now (the transfers above are not in its way).
     let mut master = SocketcandClient::connect(run.ready.as_str(), "axes").unwrap();
-    assert_eq!(upload_expedited(&mut master, 2, 0x1008), b"DRVI");
-    assert_eq!(upload_expedited(&mut master, 3, 0x1008), b"DRCS");
-    assert_eq!(upload_expedited(&mut master, 4, 0x1008), b"M006");
     // Reset communication, all nodes: three boot-ups.
     master.send(CanFrame::standard(0, &[0x82, 0]).unwrap()).unwrap();
     let mut ids: Vec<u32> = (0..3).map(|_| master.recv_timeout(WAIT).unwrap().unwrap().id()).collect();
@@ -281,21 +268,17 @@ fn saved_parameters_persist_and_a_corrupt_file_is_reported() {
     let _ = std::fs::remove_dir_all(&dir);
     let state = dir.to_str().unwrap();
     let args = ["run", "--device", "drvi", "--node-id", "2", "--state-dir", state, "--listen", "127.0.0.1:0"];
-    let sdo = |bus: &mut SocketcandClient, data: [u8; 8]| {
-        bus.send(CanFrame::standard(0x602, &data).unwrap()).unwrap();
-        next_with_id(bus, 0x582).data().to_vec()
-    };
 
     let mut first = Process::start(&args, "listening on ");
-    let mut bus = SocketcandClient::connect(first.ready.as_str(), "can0").unwrap();
-    assert_eq!(sdo(&mut bus, [0x23, 0x83, 0x60, 0x00, 0x39, 0x30, 0, 0])[0], 0x60); // 6083h = 12345
-    assert_eq!(sdo(&mut bus, [0x23, 0x10, 0x10, 0x01, b's', b'a', b'v', b'e'])[0], 0x60);
+    let od = master(&first.ready, "can0");
+    download_u32(&od, 2, 0x6083, 0, 12345);
+    od.node(2).unwrap().write_bytes(0x1010, 1, b"save").expect("1010h save");
+    drop(od);
     first.signal(libc::SIGTERM);
     assert!(first.wait().0.success());
 
     let mut second = Process::start(&args, "listening on ");
-    let mut bus = SocketcandClient::connect(second.ready.as_str(), "can0").unwrap();
-    assert_eq!(upload_expedited(&mut bus, 2, 0x6083), 12345u32.to_le_bytes());
+    assert_eq!(upload(&master(&second.ready, "can0"), 2, 0x6083), 12345u32.to_le_bytes());
     second.signal(libc::SIGTERM);
     assert!(second.wait().0.success());
 
@@ -305,8 +288,7 @@ fn saved_parameters_persist_and_a_corrupt_file_is_reported() {
     bytes[middle] ^= 0xFF;
     std::fs::write(&file, bytes).unwrap();
     let mut third = Process::start(&args, "listening on ");
-    let mut bus = SocketcandClient::connect(third.ready.as_str(), "can0").unwrap();
-    assert_eq!(upload_expedited(&mut bus, 2, 0x6083), [0, 0, 0, 0]);
+    assert_eq!(upload(&master(&third.ready, "can0"), 2, 0x6083), [0, 0, 0, 0]);
     third.signal(libc::SIGTERM);
     let (status, log) = third.wait();
     assert!(status.success());

@@ -1,10 +1,10 @@
 //! The machines around the drives (issue 17): every preset of every device, the defaults,
 //! machine files, on the in-memory bus and the virtual clock.
 
+use crate::support::Master;
 use drive::drives::akd::{self, COUNTS_PER_TURN};
 use drive::drives::drcs::{self, Mechanics};
 use drive::drives::machine::{self, presets};
-use drive::drives::master::Master;
 use drive::drives::{DeviceApps, drvi};
 use drive::motion::{Cam, Environment, Machine, Travel};
 use drive::node::{DeviceKind, Node, NodeConfig, NodeStorage, Sim};

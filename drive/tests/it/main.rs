@@ -27,3 +27,4 @@ mod node_props;
 mod node_run;
 mod node_sim;
 mod node_storage;
+mod support;

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use drive::node::{DefaultApps, DeviceKind, NodeConfig, NodeSetupError, Sim};
+use drive::node::{DefaultApps, DeviceKind, NodeConfig, NodeSetupError, Sim, VirtualBus};
 use od_bus::{CanFrame, Endpoint, LocalEndpoint};
 
 /// The DRVI's EDS with `ParameterValue=` lines added to the named sections and, when given,
@@ -51,43 +51,20 @@ fn drain(ep: &mut LocalEndpoint) -> Vec<String> {
     out
 }
 
-fn exchange(sim: &mut Sim, master: &mut LocalEndpoint, request: &str) -> Vec<String> {
+/// A frame of the test's own on the raw endpoint, and what came back at the same instant.
+fn exchange(sim: &mut VirtualBus, master: &mut LocalEndpoint, request: &str) -> Vec<String> {
     master.send(frame(request)).unwrap();
     sim.advance(0);
     drain(master)
 }
 
-/// A segmented (or expedited) SDO upload with a minimal client: the whole value.
-fn upload(sim: &mut Sim, master: &mut LocalEndpoint, node: u8, index: u16, sub: u8) -> Vec<u8> {
-    let (rx, tx) = (0x600 + u32::from(node), 0x580 + u32::from(node));
-    master.send(CanFrame::standard(rx, &[0x40, index as u8, (index >> 8) as u8, sub, 0, 0, 0, 0]).unwrap()).unwrap();
-    sim.advance(0);
-    let first = master.try_recv().unwrap().expect("initiate response");
-    assert_eq!(first.id(), tx);
-    let d = first.data().to_vec();
-    if d[0] & 0x02 != 0 {
-        let n = if d[0] & 0x01 != 0 { 4 - usize::from((d[0] >> 2) & 3) } else { 4 };
-        return d[4..4 + n].to_vec();
-    }
-    assert_eq!(d[0], 0x41, "segmented upload with size: {first}");
-    let size = u32::from_le_bytes([d[4], d[5], d[6], d[7]]) as usize;
-    let mut data = Vec::new();
-    let mut toggle = 0u8;
-    loop {
-        master.send(CanFrame::standard(rx, &[0x60 | toggle, 0, 0, 0, 0, 0, 0, 0]).unwrap()).unwrap();
-        sim.advance(0);
-        let seg = master.try_recv().unwrap().expect("segment");
-        let s = seg.data();
-        assert_eq!(s[0] & 0x10, toggle, "toggle bit of {seg}");
-        let n = 7 - usize::from((s[0] >> 1) & 7);
-        data.extend_from_slice(&s[1..1 + n]);
-        if s[0] & 0x01 != 0 {
-            break;
-        }
-        toggle ^= 0x10;
-    }
-    assert_eq!(data.len(), size);
-    data
+/// The whole value of an SDO upload by od-master (expedited or segmented, as the device
+/// answers); the transfer's frames are taken off the raw endpoint.
+fn upload(sim: &mut VirtualBus, master: &mut LocalEndpoint, node: u8, index: u16, sub: u8) -> Vec<u8> {
+    let drive = sim.bus().node(node).unwrap();
+    let value = sim.run(drive.read_bytes(index, sub)).unwrap_or_else(|e| panic!("upload {index:04X}h sub {sub}: {e}"));
+    drain(master);
+    value
 }
 
 fn u32_of(bytes: &[u8]) -> u32 {
@@ -96,7 +73,9 @@ fn u32_of(bytes: &[u8]) -> u32 {
     u32::from_le_bytes(b)
 }
 
-fn sim_with_dcf(text: &str, name: &str, node_id: Option<u8>) -> (Sim, LocalEndpoint, TempFile) {
+/// The node on a simulation with od-master on its bus, and a raw endpoint for the tests' own
+/// frames.
+fn sim_with_dcf(text: &str, name: &str, node_id: Option<u8>) -> (VirtualBus, LocalEndpoint, TempFile) {
     let file = TempFile::new(name, text);
     let node = DeviceKind::Drvi
         .build(&NodeConfig { node_id, dcf: Some(file.0.clone()), ..NodeConfig::default() }, &DefaultApps)
@@ -104,7 +83,7 @@ fn sim_with_dcf(text: &str, name: &str, node_id: Option<u8>) -> (Sim, LocalEndpo
     let mut sim = Sim::new();
     let master = sim.endpoint();
     sim.add(node);
-    (sim, master, file)
+    (VirtualBus::new(sim, od_master::Config::default()).unwrap(), master, file)
 }
 
 const VALUES: &[(&str, &str)] = &[

@@ -2,9 +2,8 @@
 
 use std::time::Duration;
 
-use drive::drives::master::{Master, SdoError as OldError};
 use drive::node::{DeviceKind, Sim};
-use od_master::{AbortCode, Error, Mode, SdoOptions};
+use od_master::{Error, Mode, SdoOptions};
 use od_runtime::master::SdoError;
 use od_runtime::od::Access;
 use tokio::time::Instant;
@@ -12,43 +11,36 @@ use tokio::time::Instant;
 use crate::harness::{net, node, pass};
 
 /// Every readable object of each device reads the same through od-master (normal and block
-/// transfers) as through drive's blocking test master on a twin simulation kept at the same
-/// virtual time: the value, or the same abort code.
+/// transfers) as the device itself answers it (`Node::upload`: its application's answer or
+/// its dictionary's value) on a twin simulation kept at the same virtual time: the value, or
+/// the same abort code.
 #[tokio::test(start_paused = true)]
-async fn every_readable_object_reads_as_the_blocking_master_reads_it() {
+async fn every_readable_object_reads_as_the_device_answers_it() {
     for kind in DeviceKind::ALL {
         let n = net(&[(kind, 2)]);
         pass(Duration::from_millis(1)).await;
-        let mut sim = Sim::new();
-        sim.add(node(kind, 2));
-        let mut old = Master::new(sim);
-        old.advance(1000);
+        let mut twin = Sim::new();
+        twin.add(node(kind, 2));
+        twin.advance(1000);
         let drive = n.bus.node(2).unwrap().with_retries(0);
         let block = drive.clone().with_options(SdoOptions { mode: Mode::Block, retries: 0, ..SdoOptions::default() });
         let mut compared = 0;
         for e in kind.entries().iter().filter(|e| e.access != Access::Wo) {
             // Counters of time (the DRCS's 2100h..) read the same at the same virtual time.
             let now = n.sim.lock().unwrap().now();
-            old.advance(now.saturating_sub(old.now()));
-            let want = old.read(2, e.index, e.sub);
+            twin.advance(now.saturating_sub(twin.now()));
+            let want = twin.node_mut(0).upload(e.index, e.sub);
             for (how, got) in
                 [("normal", drive.read_bytes(e.index, e.sub).await), ("block", block.read_bytes(e.index, e.sub).await)]
             {
                 match (&want, got) {
                     (Ok(w), Ok(g)) => assert_eq!(w, &g, "{kind:?} {:04X}h sub {} ({how})", e.index, e.sub),
-                    (Err(OldError::Abort(w)), Err(Error::Sdo { error, attempts: 1 })) => {
-                        assert_eq!(
-                            error.error,
-                            SdoError::Server(AbortCode(*w)),
-                            "{kind:?} {:04X}h sub {} ({how})",
-                            e.index,
-                            e.sub
-                        )
+                    (Err(w), Err(Error::Sdo { error, attempts: 1 })) => {
+                        assert_eq!(error.error, SdoError::Server(*w), "{kind:?} {:04X}h sub {} ({how})", e.index, e.sub)
                     }
-                    (w, g) => panic!(
-                        "{kind:?} {:04X}h sub {} ({how}): blocking master {w:?}, od-master {g:?}",
-                        e.index, e.sub
-                    ),
+                    (w, g) => {
+                        panic!("{kind:?} {:04X}h sub {} ({how}): the device {w:?}, od-master {g:?}", e.index, e.sub)
+                    }
                 }
             }
             compared += 1;

@@ -1,8 +1,8 @@
 //! Frames written as the drives' manuals print them (`"603 2B 40 60 00 06 00 00 00"`: the
 //! identifier, then the data bytes, in hex), for tests that replay the manuals' listings
-//! through a [`Master`] on the virtual clock.
+//! through od-master's bus ([`Master::send`]) on the virtual clock.
 
-use drive::drives::master::Master;
+use crate::support::Master;
 use od_bus::CanFrame;
 
 /// `"603 2B 40 60 00 06 00 00 00"` as a frame.
