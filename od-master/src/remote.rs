@@ -720,6 +720,7 @@ pub async fn map_pdo(
 #[derive(Debug)]
 pub struct Rpdo<'a, P> {
     node: &'a Node,
+    cob_id: Option<u16>,
     check: fn(&[u32]) -> Result<u32, AbortCode>,
     layout: PhantomData<fn(P)>,
 }
@@ -727,12 +728,22 @@ pub struct Rpdo<'a, P> {
 impl<'a, P: PdoLayout> Rpdo<'a, P> {
     /// The RPDO of layout `P` on `node`; `check` is the device's mapping check.
     pub fn new(node: &'a Node, check: fn(&[u32]) -> Result<u32, AbortCode>) -> Self {
-        Self { node, check, layout: PhantomData }
+        Self { node, cob_id: None, check, layout: PhantomData }
+    }
+
+    /// On `cob_id` instead of the predefined connection set's (RPDOs 1–4) or the one the
+    /// device holds (the others).
+    pub fn with_cob_id(mut self, cob_id: u16) -> Self {
+        self.cob_id = Some(cob_id & 0x7FF);
+        self
     }
 
     /// The COB-ID it is sent on.
     pub async fn cob_id(&self) -> Result<u16, Error> {
-        cob_id(self.node, P::DIRECTION, P::NUMBER).await
+        match self.cob_id {
+            Some(c) => Ok(c),
+            None => cob_id(self.node, P::DIRECTION, P::NUMBER).await,
+        }
     }
 
     /// Maps the layout on the device ([`map_pdo`]) on its COB-ID.
@@ -754,6 +765,7 @@ impl<'a, P: PdoLayout> Rpdo<'a, P> {
 #[derive(Debug)]
 pub struct Tpdo<'a, P> {
     node: &'a Node,
+    cob_id: Option<u16>,
     check: fn(&[u32]) -> Result<u32, AbortCode>,
     layout: PhantomData<fn() -> P>,
 }
@@ -761,12 +773,22 @@ pub struct Tpdo<'a, P> {
 impl<'a, P: PdoLayout> Tpdo<'a, P> {
     /// The TPDO of layout `P` on `node`; `check` is the device's mapping check.
     pub fn new(node: &'a Node, check: fn(&[u32]) -> Result<u32, AbortCode>) -> Self {
-        Self { node, check, layout: PhantomData }
+        Self { node, cob_id: None, check, layout: PhantomData }
+    }
+
+    /// On `cob_id` instead of the predefined connection set's (TPDOs 1–4) or the one the
+    /// device holds (the others).
+    pub fn with_cob_id(mut self, cob_id: u16) -> Self {
+        self.cob_id = Some(cob_id & 0x7FF);
+        self
     }
 
     /// The COB-ID it comes on.
     pub async fn cob_id(&self) -> Result<u16, Error> {
-        cob_id(self.node, P::DIRECTION, P::NUMBER).await
+        match self.cob_id {
+            Some(c) => Ok(c),
+            None => cob_id(self.node, P::DIRECTION, P::NUMBER).await,
+        }
     }
 
     /// Maps the layout on the device ([`map_pdo`]) on its COB-ID.
@@ -816,5 +838,52 @@ impl<P: PdoLayout> TpdoReceiver<P> {
                 Err(broadcast::error::RecvError::Closed) => return Err(Error::Closed),
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// A decimal with up to 9 places, written as an f64, is that decimal exactly.
+        #[test]
+        fn an_f64_decimal_is_its_exact_ratio(units in -1_000_000_000_000i64..1_000_000_000_000, places in 0u32..9) {
+            let den = 10i128.pow(places);
+            let text = format!("{}", Ratio::new(i128::from(units), den).unwrap().to_f64());
+            let v: f64 = text.parse().unwrap();
+            let r = v.ratio().unwrap().reduced();
+            let want = Ratio::new(i128::from(units), den).unwrap().reduced();
+            prop_assert_eq!((r.num(), r.den()), (want.num(), want.den()), "{}", text);
+        }
+
+        /// Integers are exact.
+        #[test]
+        fn integers_are_exact(v in any::<i64>()) {
+            let r = v.ratio().unwrap();
+            prop_assert_eq!((r.num(), r.den()), (i128::from(v), 1));
+        }
+
+        /// The limit rule is the device side's for every value and limits.
+        #[test]
+        fn the_limit_rule_is_the_device_sides(v in any::<i32>(), a in any::<i32>(), b in any::<i32>()) {
+            let (low, high) = (i64::from(a.min(b)), i64::from(a.max(b)));
+            use od_runtime::od::{Access, DataType, EntryExtras, EntryInfo, Limits};
+            // Leaked: a few bytes per case, as the tables' `'static` references want.
+            let limits: &'static Limits = Box::leak(Box::new(Limits { low, high }));
+            let extras: &'static EntryExtras = Box::leak(Box::new(EntryExtras { limits: Some(limits), ..EntryExtras::NONE }));
+            let info = EntryInfo::new(0x2000, 0, DataType::Integer32, Access::Rw, false).with_extras(extras);
+            prop_assert_eq!(check_limits(i128::from(v), i128::from(low), i128::from(high)).err(), info.check_value(&v.to_le_bytes()).err());
+        }
+    }
+
+    #[test]
+    fn values_that_are_no_number_are_refused() {
+        assert!(f64::NAN.ratio().is_none());
+        assert!(f64::INFINITY.ratio().is_none());
+        assert!(1e300f64.ratio().is_none());
+        let r = 0.1f32.ratio().unwrap().reduced();
+        assert_eq!((r.num(), r.den()), (1, 10));
     }
 }

@@ -51,6 +51,10 @@ async fn typed_reads_and_writes_on_each_drive() {
     akd.target_position().write(777).await.unwrap();
     assert_eq!(akd.target_position().read().await.unwrap(), 777);
     assert_eq!(akd.statusword().read().await.unwrap(), n.bus.node(4).unwrap().read::<u16>(0x6041, 0).await.unwrap());
+    // A string written (the AKD's ASCII channel, `wo`) and its answer read back as text.
+    akd.ascii_channel_command().write("DRV.FAULTS\r").await.unwrap();
+    let answer = akd.ascii_channel_response().read().await.unwrap();
+    assert!(answer.starts_with('>'), "{answer:?}");
     // The handle names its object.
     assert_eq!((drvi.identity_object_vendor_id().index(), drvi.identity_object_vendor_id().sub()), (0x1018, 1));
 }
@@ -193,6 +197,9 @@ async fn units_from_the_drive_in_each_unit_system() {
     // DRVI, 2014h = 0: only motor, 0.01° per unit, through 2001h.
     let drvi = drvi::remote::Remote::new(a.clone());
     drvi.actuator_type().write(0).await.unwrap();
+    // A feed converter other than 1/1, so that the factor shows in every value.
+    drvi.feed_converter_numerator().write(3).await.unwrap();
+    drvi.feed_converter_denominator().write(2).await.unwrap();
     drvi.target_position().write(36_000).await.unwrap();
     let units = drvi.units().await.unwrap();
     assert_eq!(units.system(), drvi::units::System::OnlyMotor);
@@ -220,16 +227,21 @@ async fn units_from_the_drive_in_each_unit_system() {
     let raw = i128::from(a.read::<i32>(0x6064, 0).await.unwrap());
     assert_eq!(p.value().reduced(), Ratio::new(raw * den, 100 * num).unwrap().reduced());
 
-    // DRCS: mm, through 2001h as well.
+    // DRCS: mm, through 2001h as well (mm = raw × denominator / numerator).
     let drcs = drcs::remote::Remote::new(b.clone());
+    drcs.feed_converter_numerator().write(2).await.unwrap();
+    drcs.feed_converter_denominator().write(5).await.unwrap();
     let units = drcs.units().await.unwrap();
     assert_eq!(units.system(), drcs::units::System::Actuator);
     drcs.target_position().write_in(&units, Quantity::mm(40)).await.unwrap();
-    let raw = b.read::<i32>(0x607A, 0).await.unwrap();
+    let (num, den) = (b.read::<u32>(0x2001, 1).await.unwrap(), b.read::<u32>(0x2001, 2).await.unwrap());
+    assert_eq!((num, den), (2, 5));
+    assert_eq!(b.read::<i32>(0x607A, 0).await.unwrap(), 16);
     let back = drcs.target_position().read_in(&units).await.unwrap();
     assert_eq!((back.to_f64(), back.unit()), (40.0, od_master::remote::Unit::Millimeter));
-    let f = units.factor(drcs::units::Dimension::Position).unwrap();
-    assert_eq!(f.checked_mul_int(i64::from(raw)).unwrap().reduced(), Ratio::int(40).reduced());
+    let p = drcs.position_actual_value().read_in(&units).await.unwrap();
+    let raw = i128::from(b.read::<i32>(0x6064, 0).await.unwrap());
+    assert_eq!(p.value().reduced(), Ratio::new(raw * 5, 2).unwrap().reduced());
 
     // AKD: user units; 6092h feed per revolution is the user unit's scale.
     let akd = akd::remote::Remote::new(c.clone());
@@ -238,6 +250,11 @@ async fn units_from_the_drive_in_each_unit_system() {
     let p = akd.position_actual_value().read_in(&units).await.unwrap();
     assert_eq!(p.unit(), od_master::remote::Unit::UserUnit);
     let raw = i64::from(c.read::<i32>(0x6064, 0).await.unwrap());
+    assert_eq!(p.value().reduced(), Ratio::int(raw).reduced());
+    // User units per motor revolution: 6092h feed / shaft revolutions, read separately.
+    let (feed, shaft) = (c.read::<u32>(0x6092, 1).await.unwrap(), c.read::<u32>(0x6092, 2).await.unwrap());
+    let turns = units.to_internal(akd::units::Dimension::Position, 25_000).unwrap().reduced();
+    assert_eq!(turns, Ratio::new(25_000 * i128::from(shaft), i128::from(feed)).unwrap().reduced());
     assert_eq!(
         Scaling::to_physical(&units, od_master::remote::Dimension::Position, raw).unwrap().0.reduced(),
         p.value().reduced()
