@@ -275,15 +275,19 @@ async fn each_drive_homes_and_moves_in_user_units() {
 
     let drvi = drvi::remote::Remote::new(n.bus.node(2).unwrap());
     let units = drvi.units().await.unwrap();
-    // The profile's speeds in units too: 60 rpm, 6000 rpm/s.
+    // As the README does: the profile velocity in units (60 rpm), the ramps as a move's raw
+    // parameters (6000 rpm/s).
     drvi.profile_velocity().write_in(&units, Quantity::rpm(60)).await.unwrap();
-    drvi.profile_acceleration().write_in(&units, Quantity::rpm_per_s(6000)).await.unwrap();
-    drvi.profile_deceleration().write_in(&units, Quantity::rpm_per_s(6000)).await.unwrap();
+    assert_eq!(drvi.profile_velocity().read().await.unwrap(), 6_000);
     let axis = Axis::new(drvi.node().clone()).with_units(units);
     axis.home(HomingMethod(37)).await.unwrap();
-    let at = axis.move_to(Quantity::deg(720)).await.unwrap();
+    let ramps = Move { acceleration: Some(6_000), deceleration: Some(6_000), ..Move::default() };
+    let at = axis.move_to_with(Quantity::deg(720), &ramps).await.unwrap();
     assert_eq!((at.to_f64(), at.unit()), (720.0, od_master::remote::Unit::Degree));
     let raw = drvi.position_actual_value().read().await.unwrap();
+    // With the ramps on the drive, the drive's own parameters do: back to 90 degrees.
+    let back = axis.move_to(Quantity::deg(90)).await.unwrap();
+    assert_eq!(back.to_f64(), 90.0);
     assert_eq!(
         axis.units().to_raw(od_master::remote::Dimension::Position, at.value(), at.unit()).unwrap(),
         i64::from(raw)
