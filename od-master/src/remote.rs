@@ -673,7 +673,7 @@ pub trait PdoLayout: Sized {
 /// The communication parameter object of PDO `number` in `dir` (1400h/1800h + n − 1).
 fn comm_index(dir: Direction, number: u16) -> u16 {
     let base = if dir == Direction::Receive { 0x1400 } else { 0x1800 };
-    base + (number - 1)
+    base + number.clamp(1, 512) - 1
 }
 
 /// The COB-ID of PDO `number` on `node` in CiA 301's predefined connection set (PDOs 1–4), read
@@ -687,9 +687,10 @@ async fn cob_id(node: &Node, dir: Direction, number: u16) -> Result<u16, Error> 
     Ok((c & 0x7FF) as u16)
 }
 
-/// Maps PDO `number` in `dir` on the device with `mapping` and enables it on `cob_id`, in the
-/// order CiA 301 asks: the PDO made invalid (COB-ID bit 31), the mapping's count set to 0, the
-/// entries written, the count set, the COB-ID written valid. `check` (the generated device's
+/// Maps PDO `number` (1..=512) in `dir` on the device with `mapping` and enables it on `cob_id`,
+/// in the order CiA 301 asks: the PDO made invalid (COB-ID bit 31), the mapping's count set to
+/// 0, the entries written, the count set, the COB-ID written valid (bit 30, RTR, kept as the
+/// device has it). `check` (the generated device's
 /// `check_rpdo_mapping`/`check_tpdo_mapping`) refuses a mapping over 64 bits or of an entry
 /// that is not mappable before anything is sent.
 pub async fn map_pdo(
@@ -700,13 +701,19 @@ pub async fn map_pdo(
     mapping: &[u32],
     check: fn(&[u32]) -> Result<u32, AbortCode>,
 ) -> Result<(), Error> {
+    if !(1..=512).contains(&number) {
+        let index = if dir == Direction::Receive { 0x1600 } else { 0x1A00 };
+        return Err(Error::Refused { node: node.id(), index, sub: 0, code: AbortCode::NO_OBJECT });
+    }
     let comm = comm_index(dir, number);
     let map = comm + 0x200;
-    if !(1..=512).contains(&number) || mapping.len() > 64 {
+    if mapping.len() > 64 {
         return Err(Error::Refused { node: node.id(), index: map, sub: 0, code: AbortCode::PDO_LENGTH_EXCEEDED });
     }
     check(mapping).map_err(|code| Error::Refused { node: node.id(), index: map, sub: 0, code })?;
-    let cob = u32::from(cob_id & 0x7FF);
+    // Bit 30 (no RTR) as the device has it; an 11-bit identifier (bit 29 clear).
+    let current: u32 = node.read(comm, 1).await?;
+    let cob = (current & 0x4000_0000) | u32::from(cob_id & 0x7FF);
     node.write_idempotent(comm, 1, cob | 0x8000_0000).await?;
     node.write_idempotent(map, 0, 0u8).await?;
     for (i, m) in mapping.iter().enumerate() {

@@ -180,6 +180,19 @@ async fn a_bad_mapping_is_refused_before_sending() {
     )
     .await;
     assert_eq!(refused(r), Some((0x1A00, 0, AbortCode::PDO_LENGTH_EXCEEDED)));
+    // A PDO number CiA 301 does not have.
+    for number in [0, 513] {
+        let r = od_master::remote::map_pdo(
+            &node,
+            od_runtime::pdo::Direction::Transmit,
+            number,
+            0x182,
+            &[0x6041_0010],
+            drvi::Dictionary::check_tpdo_mapping,
+        )
+        .await;
+        assert_eq!(refused(r), Some((0x1A00, 0, AbortCode::NO_OBJECT)), "{number}");
+    }
     assert_eq!(node.read::<u32>(0x1A00, 1).await.unwrap(), before);
     assert_eq!(node.read::<u32>(0x1800, 1).await.unwrap() & 0x8000_0000, 0, "TPDO 1 still valid");
 }
