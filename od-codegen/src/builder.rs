@@ -71,6 +71,7 @@ pub struct Builder {
     strict: bool,
     embed_eds: bool,
     names: Option<crate::Names>,
+    client: bool,
 }
 
 /// What went wrong in [`Builder::compile`].
@@ -250,6 +251,14 @@ impl Builder {
         self
     }
 
+    /// Whether each module also gets the master's view of the device, `pub mod remote` with a
+    /// typed `Remote` on `od_master::Node` (see `od_master::remote`). Default: off. The crate
+    /// that includes the code then depends on `od-master` and is not `no_std`.
+    pub fn client(mut self, on: bool) -> Self {
+        self.client = on;
+        self
+    }
+
     /// Whether the generated code keeps the entries' names (default [`crate::Names::Always`]).
     pub fn names(mut self, names: crate::Names) -> Self {
         self.names = Some(names);
@@ -299,6 +308,7 @@ impl Builder {
 
         let mut options = Options::new(d.module.clone(), shown.clone());
         options.strict = self.strict;
+        options.client = self.client;
         if self.embed_eds {
             options.eds_text = Some(source.text.clone());
         }

@@ -95,6 +95,7 @@
 #![deny(missing_docs)]
 
 mod builder;
+mod client;
 pub mod diag;
 mod emit;
 mod entry;
@@ -144,6 +145,10 @@ pub struct Options {
     pub strict: bool,
     /// Whether to generate the entries' names (`NAMES`, `ObjectDictionary::name`).
     pub names: Names,
+    /// Whether to generate the master's view of the device too: `pub mod remote` with a
+    /// `Remote` on `od_master::Node` (the generated code then needs `od-master`, `od-runtime`
+    /// and `std`). See `od_master::remote`.
+    pub client: bool,
 }
 
 /// Whether generated code holds the entries' names (about 40 bytes of flash per entry).
@@ -170,6 +175,7 @@ impl Options {
             min_capacity: DEFAULT_MIN_CAPACITY,
             strict: false,
             names: Names::Always,
+            client: false,
         }
     }
 }
@@ -284,6 +290,11 @@ fn expand_with(model: &Model, options: &Options, parts: &mut text::Parts) -> (To
         None => TokenStream::new(),
     };
     let product = model.device_info.product_name.as_deref().unwrap_or(&options.source_name);
+    let client = if options.client {
+        client::module(model, &plan, options.sidecar.as_ref().filter(|_| !units.is_empty()), product)
+    } else {
+        TokenStream::new()
+    };
     let mod_doc = lit::doc(&[
         format!("Object dictionary, PDO layouts and units of the {}.", lit::doc_escape(product)),
         String::new(),
@@ -301,6 +312,7 @@ fn expand_with(model: &Model, options: &Options, parts: &mut text::Parts) -> (To
             #device
             #pdo
             #units
+            #client
         }
     };
     let mut diagnostics = sink.out;

@@ -445,6 +445,12 @@ fn unpack_expr(f: &Field<'_>, e: &PEntry<'_>) -> TokenStream {
     }
 }
 
+/// Each generated layout's direction, number and mapping entries (for the client, which
+/// implements `od_master::remote::PdoLayout` for them).
+pub(crate) fn layout_summaries(model: &Model, plan: &Plan<'_>, sink: &mut Sink) -> Vec<(Direction, u16, Vec<u32>)> {
+    layouts(model, plan, sink).into_iter().map(|l| (l.dir, l.number, l.raw)).collect()
+}
+
 /// `pub mod pdo { … }`, or nothing when the device has no default mapping.
 pub(crate) fn module(model: &Model, plan: &Plan<'_>, sink: &mut Sink) -> TokenStream {
     let layouts = layouts(model, plan, sink);

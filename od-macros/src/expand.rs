@@ -51,16 +51,17 @@ pub(crate) fn object_dictionary(input: TokenStream) -> TokenStream {
     }
 }
 
-/// `include_eds!("path", mod name, strict)`.
+/// `include_eds!("path", mod name, strict, client)`.
 struct IncludeArgs {
     path: LitStr,
     module: Option<Ident>,
     strict: bool,
+    client: bool,
 }
 
 fn include_args(input: ParseStream<'_>) -> syn::Result<IncludeArgs> {
     let path: LitStr = input.parse()?;
-    let mut args = IncludeArgs { path, module: None, strict: false };
+    let mut args = IncludeArgs { path, module: None, strict: false, client: false };
     while !input.is_empty() {
         input.parse::<syn::Token![,]>()?;
         if input.is_empty() {
@@ -75,8 +76,12 @@ fn include_args(input: ParseStream<'_>) -> syn::Result<IncludeArgs> {
             continue;
         }
         let id: Ident = input.parse()?;
+        if id == "client" {
+            args.client = true;
+            continue;
+        }
         if id != "strict" {
-            return Err(syn::Error::new(id.span(), "expected `mod name` or `strict`"));
+            return Err(syn::Error::new(id.span(), "expected `mod name`, `strict` or `client`"));
         }
         args.strict = true;
     }
@@ -157,6 +162,7 @@ pub(crate) fn include(input: TokenStream, manifest_dir: Option<&Path>) -> syn::R
     let mut options = od_codegen::Options::new(module, shown.clone());
     options.eds_text = Some(source.text.clone());
     options.strict = args.strict;
+    options.client = args.client;
     let mut tracked = vec![abs.clone()];
     let sidecar = abs.with_extension("toml");
     if sidecar.is_file() {

@@ -93,6 +93,7 @@
 //! ```text
 //! od_macros::include_eds!("devices/camozzi-drvi.eds");                // pub mod camozzi_drvi
 //! od_macros::include_eds!("devices/camozzi-drvi.eds", mod drvi, strict);
+//! od_macros::include_eds!("devices/camozzi-drvi.eds", mod drvi, client); // + drvi::remote::Remote
 //! ```
 //!
 //! The path is relative to the crate's `Cargo.toml` (`CARGO_MANIFEST_DIR`). A sidecar beside

@@ -13,6 +13,7 @@
 //! | profile velocity | 60FFh, 6083h, 6084h | [`Axis::run_velocity`] |
 //! | cyclic synchronous position: a set-point every SYNC | 1400h+, 1600h+, 607Ah | [`Axis::cyclic_position`], [`Csp::send`] |
 
+use std::sync::Arc;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Duration;
 
@@ -26,6 +27,7 @@ use tokio::time::Instant;
 use crate::bus::CyclicPdo;
 use crate::error::{AxisError, AxisErrorKind, Error};
 use crate::node::{Node, SdoValue};
+use crate::remote::{Quantity, Scaling, UnitError, dim};
 
 const CONTROLWORD: u16 = 0x6040;
 const STATUSWORD: u16 = 0x6041;
@@ -98,6 +100,23 @@ impl Homing {
     }
 }
 
+/// A homing method (6098h) alone: `axis.home(HomingMethod(18))` homes with the drive's own
+/// speeds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HomingMethod(pub i8);
+
+impl From<HomingMethod> for Homing {
+    fn from(m: HomingMethod) -> Self {
+        Homing::method(m.0)
+    }
+}
+
+impl From<&Homing> for Homing {
+    fn from(h: &Homing) -> Self {
+        *h
+    }
+}
+
 /// A profile-position move's parameters; unset ones keep the drive's values.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Move {
@@ -154,6 +173,12 @@ impl Axis {
     /// The node.
     pub fn node(&self) -> &Node {
         &self.node
+    }
+
+    /// This drive in the units of `units` (its generated `units::Units`, read from it with the
+    /// generated client's `units()`): positions given and returned as quantities.
+    pub fn with_units(self, units: impl Scaling + 'static) -> UnitAxis {
+        UnitAxis { axis: self, units: Arc::new(units) }
     }
 
     fn last_statusword(&self) -> Option<u16> {
@@ -334,7 +359,8 @@ impl Axis {
     /// the drive, starts the homing (bit 4) and waits for "homing attained" (bits 12 and 10),
     /// failing on a homing error (bit 13), a fault, or the timeout. Returns the position
     /// actual value (6064h) at the end.
-    pub async fn home(&self, homing: &Homing) -> Result<i32, Error> {
+    pub async fn home(&self, homing: impl Into<Homing>) -> Result<i32, Error> {
+        let homing = &homing.into();
         self.set(0x6098, 0, homing.method).await?;
         if let Some(v) = homing.speed_switch {
             self.set(0x6099, 1, v).await?;
@@ -480,6 +506,82 @@ impl Axis {
         self.enable().await?;
         let pdo = self.node.bus().cyclic_pdo(cob_id, mapping, &[PdoValue::Signed(i64::from(here))]).await?;
         Ok(Csp { pdo, syncs: self.node.bus().syncs() })
+    }
+}
+
+/// A CiA 402 drive whose positions are quantities ([`Axis::with_units`]):
+/// `axis.move_to(Quantity::deg(720))`. A position of the wrong dimension does not compile; one
+/// in a unit the drive is not set up for (mm to a drive in degrees) is an
+/// [`Error::Unit`] before anything is sent.
+#[derive(Debug)]
+pub struct UnitAxis {
+    axis: Axis,
+    units: Arc<dyn Scaling>,
+}
+
+impl UnitAxis {
+    /// The axis in raw units.
+    pub fn axis(&self) -> &Axis {
+        &self.axis
+    }
+
+    /// The conversions.
+    pub fn units(&self) -> &dyn Scaling {
+        &*self.units
+    }
+
+    fn raw(&self, q: Quantity<dim::Position>) -> Result<i32, Error> {
+        let unit = |error| Error::Unit { node: self.axis.node.id(), index: TARGET_POSITION, sub: 0, error };
+        let raw = self.units.to_raw(od_sidecar::Dimension::Position, q.value(), q.unit()).map_err(unit)?;
+        i32::try_from(raw).map_err(|_| unit(UnitError::OutOfRange))
+    }
+
+    fn physical(&self, raw: i32) -> Result<Quantity<dim::Position>, Error> {
+        let (value, unit) = self
+            .units
+            .to_physical(od_sidecar::Dimension::Position, i64::from(raw))
+            .map_err(|error| Error::Unit { node: self.axis.node.id(), index: POSITION_ACTUAL, sub: 0, error })?;
+        Ok(Quantity::from_ratio(value, unit))
+    }
+
+    /// To Operation enabled ([`Axis::enable`]).
+    pub async fn enable(&self) -> Result<(), Error> {
+        self.axis.enable().await
+    }
+
+    /// Homes the drive ([`Axis::home`]); the position at the end.
+    pub async fn home(&self, homing: impl Into<Homing>) -> Result<Quantity<dim::Position>, Error> {
+        let raw = self.axis.home(homing).await?;
+        self.physical(raw)
+    }
+
+    /// The position actual value (6064h).
+    pub async fn position(&self) -> Result<Quantity<dim::Position>, Error> {
+        let raw = self.axis.position().await?;
+        self.physical(raw)
+    }
+
+    /// A profile-position move to `target` with the drive's own speeds, to its end; the
+    /// position actual value at the end.
+    pub async fn move_to(&self, target: Quantity<dim::Position>) -> Result<Quantity<dim::Position>, Error> {
+        self.move_to_with(target, &Move::default()).await
+    }
+
+    /// A profile-position move to `target` with `m`'s parameters (raw), to its end.
+    pub async fn move_to_with(
+        &self,
+        target: Quantity<dim::Position>,
+        m: &Move,
+    ) -> Result<Quantity<dim::Position>, Error> {
+        let raw = self.raw(target)?;
+        let at = self.axis.move_to(raw, m).await?;
+        self.physical(at)
+    }
+
+    /// Hands a set-point over without waiting for the target ([`Axis::set_point`]).
+    pub async fn set_point(&self, target: Quantity<dim::Position>, m: &Move) -> Result<(), Error> {
+        let raw = self.raw(target)?;
+        self.axis.set_point(raw, m).await
     }
 }
 

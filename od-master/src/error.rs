@@ -63,6 +63,31 @@ pub enum Error {
     /// A node id outside 1..=127.
     #[error("node id {0} is outside 1..=127")]
     NodeId(u8),
+    /// A value or a PDO mapping refused before anything was sent (a generated client's check
+    /// of the EDS limits or mapping rules), with the abort code the device would answer with.
+    #[error("node {node}, {index:04X}h sub {sub}: refused before sending: {code}")]
+    Refused {
+        /// The node.
+        node: u8,
+        /// Object index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+        /// The abort code the device would give.
+        code: od_runtime::od::AbortCode,
+    },
+    /// A quantity could not be converted to or from the entry's raw value.
+    #[error("node {node}, {index:04X}h sub {sub}: {error}")]
+    Unit {
+        /// The node.
+        node: u8,
+        /// Object index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+        /// What was wrong.
+        error: crate::remote::UnitError,
+    },
     /// A CiA 402 operation failed.
     #[error(transparent)]
     Axis(#[from] Box<AxisError>),

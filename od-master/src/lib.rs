@@ -9,6 +9,7 @@
 //! | events: boot-up, heartbeat lost/recovered, NMT state, EMCY with texts | [`Event`] | [`event`] |
 //! | CiA 402 drive: enable, homing, profile position/velocity, cyclic position | [`Axis`] | [`axis`] |
 //! | errors naming the node, the object and the abort code | [`Error`] | [`error`] |
+//! | typed entries, PDOs and quantities for generated clients | [`remote::Object`] | [`remote`] |
 //! | a blocking facade for scripts, wrapping the async handles | [`blocking::Bus`] | [`blocking`] |
 //!
 //! The protocol is `od_runtime::master`'s (sans-IO state machines); the buses are `od-bus`'s.
@@ -22,8 +23,9 @@ pub mod bus;
 pub mod error;
 pub mod event;
 pub mod node;
+pub mod remote;
 
-pub use axis::{Axis, AxisConfig, Homing, Move};
+pub use axis::{Axis, AxisConfig, Homing, HomingMethod, Move, UnitAxis};
 pub use bus::{Bus, Config, CyclicPdo, Tpdo};
 pub use error::{AxisError, AxisErrorKind, Error};
 pub use event::{EmcyTexts, Event};

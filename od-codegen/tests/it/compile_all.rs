@@ -164,3 +164,94 @@ fn every_description_generates_code_that_compiles_with_warnings_denied() {
     );
     assert!(out.status.success(), "the generated code does not compile (crate at {}):\n{stderr}", krate.display());
 }
+
+/// The client (`Builder::client`): the master's view generated for every corpus file, every
+/// fixture the reader accepts, the three devices with their sidecars (units, PDO layouts) and
+/// random models goes into one crate on `od-master`, which `cargo check` must accept with
+/// warnings denied (`target/od-codegen-compile-all-client`).
+#[test]
+fn every_description_generates_a_client_that_compiles_with_warnings_denied() {
+    let root = workspace_root();
+    let mut files = description_files(&Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures"));
+    if let Some(c) = corpus() {
+        files.extend(c);
+    }
+    let krate = target_dir().join("od-codegen-compile-all-client");
+    let src = krate.join("src");
+    std::fs::create_dir_all(&src).unwrap();
+    let mut builder = Builder::new().cargo_metadata(false).client(true).out_dir(&src);
+    let mut modules = Vec::new();
+    for (i, f) in files.iter().enumerate() {
+        let parsed = eds::read_file(f, &eds::Options::lenient()).unwrap();
+        if parsed.has_errors() {
+            continue;
+        }
+        let m = module_name(i, f);
+        builder = builder.device(&m, f).no_sidecar();
+        modules.push(m);
+    }
+    for (m, file) in [("drvi", "camozzi-drvi.eds"), ("drcs", "camozzi-drcs.eds"), ("akd", "kollmorgen-akd.eds")] {
+        builder = builder.device(m, root.join("devices").join(file));
+        modules.push(m.to_owned());
+    }
+    let mut failures = Vec::new();
+    for r in builder.generate_each() {
+        match r {
+            Ok(o) => {
+                od_codegen::write_if_changed(&src.join(&o.file_name), &o.text).unwrap();
+            }
+            Err(e) => failures.push(e.to_string()),
+        }
+    }
+    assert!(failures.is_empty(), "client generation failed:\n{}", failures.join("\n\n"));
+    let random_models: u64 = std::env::var("ODCODEGEN_RANDOM_MODELS").ok().and_then(|n| n.parse().ok()).unwrap_or(40);
+    for seed in 0..random_models {
+        let m = format!("random_{seed:02}");
+        let model = common::random::model(seed);
+        let mut options = od_codegen::Options::new(m.clone(), format!("{m}.eds"));
+        options.client = true;
+        let g = od_codegen::expand(&model, &options);
+        let text = od_codegen::render(&g.tokens, &m).unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+        od_codegen::write_if_changed(&src.join(format!("{m}.rs")), &text).unwrap();
+        modules.push(m);
+    }
+    let mut lib = String::from(
+        "//! Every description's generated module with its client (written by od-codegen's tests/compile_all.rs).\n\
+         #![deny(warnings)]\n\n",
+    );
+    for m in &modules {
+        lib.push_str(&format!("include!(\"{m}.rs\");\n"));
+    }
+    od_codegen::write_if_changed(&src.join("lib.rs"), &lib).unwrap();
+    let manifest = format!(
+        "[package]\nname = \"od-codegen-compile-all-client\"\nversion = \"0.0.0\"\nedition = \"2024\"\npublish = false\n\n\
+         [dependencies]\nod-runtime = {{ path = {:?} }}\nod-master = {{ path = {:?} }}\n\n[workspace]\n",
+        root.join("od-runtime").display().to_string(),
+        root.join("od-master").display().to_string()
+    );
+    od_codegen::write_if_changed(&krate.join("Cargo.toml"), &manifest).unwrap();
+    // The workspace's lock file, so the inner build resolves offline to the versions already built.
+    let lock = std::fs::read_to_string(root.join("Cargo.lock")).unwrap();
+    if !krate.join("Cargo.lock").exists() {
+        std::fs::write(krate.join("Cargo.lock"), lock).unwrap();
+    }
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let started = std::time::Instant::now();
+    let out = Command::new(cargo)
+        .arg("check")
+        .arg("--quiet")
+        .arg("--offline")
+        .arg("--manifest-path")
+        .arg(krate.join("Cargo.toml"))
+        .arg("--target-dir")
+        .arg(krate.join("target"))
+        .env_remove("RUSTFLAGS")
+        .env_remove("CARGO_ENCODED_RUSTFLAGS")
+        .env_remove("CARGO_TARGET_DIR")
+        .env_remove("CARGO_BUILD_TARGET_DIR")
+        .output()
+        .expect("run cargo check");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    println!("{} clients, checked in {:.1?}", modules.len(), started.elapsed());
+    assert!(out.status.success(), "the generated clients do not compile (crate at {}):\n{stderr}", krate.display());
+}

@@ -1,6 +1,7 @@
 //! The integration tests of `od-codegen`, one module per former test file, linked into one
 //! binary: `cargo test -p od-codegen --test it` runs them all, `... --test it -- MODULE::` one module.
 
+mod client;
 mod common;
 mod compile_all;
 mod devices;

@@ -3,6 +3,8 @@
 
 mod axis;
 mod cli;
+mod client;
+mod client_ui;
 mod events;
 mod faults;
 mod harness;

@@ -9,7 +9,7 @@ use od_codegen::Severity;
 
 use super::{EXIT_FAILURE, EXIT_TROUBLE};
 
-/// `odgen gen FILE [--sidecar TOML] [--module NAME] [--strict] [--embed-eds] [-o OUT.rs]`
+/// `odgen gen FILE [--sidecar TOML] [--module NAME] [--strict] [--embed-eds] [--client] [-o OUT.rs]`
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// The EDS or DCF file.
@@ -27,6 +27,10 @@ pub struct Args {
     /// Include the description's text as `pub const EDS: &str`.
     #[arg(long)]
     pub embed_eds: bool,
+    /// Also generate the master's view of the device: `pub mod remote` with a typed `Remote`
+    /// on `od_master::Node` (the code then needs `od-master` and `std`).
+    #[arg(long)]
+    pub client: bool,
     /// Write the module to this file (only if its contents change; `-` is standard output)
     /// instead of standard output. The file is written through symbolic links, keeping its
     /// mode and owner; devices and read-only files are refused.
@@ -44,8 +48,11 @@ pub fn run(args: Args) -> ExitCode {
             od_codegen::ident::snake(stem).unwrap_or_else(|| "device".to_owned())
         }
     };
-    let mut builder =
-        od_codegen::Builder::new().cargo_metadata(false).embed_eds(args.embed_eds).device(module, &args.file);
+    let mut builder = od_codegen::Builder::new()
+        .cargo_metadata(false)
+        .embed_eds(args.embed_eds)
+        .client(args.client)
+        .device(module, &args.file);
     if let Some(s) = &args.sidecar {
         builder = builder.sidecar(s);
     }

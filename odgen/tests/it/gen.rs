@@ -15,8 +15,13 @@ fn odgen(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_odgen")).args(args).current_dir(root()).output().expect("run odgen")
 }
 
-fn builder_text(file: &str, module: &str, strict: bool, embed: bool) -> String {
-    let mut b = od_codegen::Builder::new().root(root()).cargo_metadata(false).embed_eds(embed).device(module, file);
+fn builder_text(file: &str, module: &str, strict: bool, embed: bool, client: bool) -> String {
+    let mut b = od_codegen::Builder::new()
+        .root(root())
+        .cargo_metadata(false)
+        .embed_eds(embed)
+        .client(client)
+        .device(module, file);
     if strict {
         b = b.strict();
     }
@@ -32,7 +37,13 @@ fn same_as_builder(file: &str, extra: &[&str]) {
     let out = odgen(&args);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(0), "{file}: {stderr}");
-    let expected = builder_text(file, &module, extra.contains(&"--strict"), extra.contains(&"--embed-eds"));
+    let expected = builder_text(
+        file,
+        &module,
+        extra.contains(&"--strict"),
+        extra.contains(&"--embed-eds"),
+        extra.contains(&"--client"),
+    );
     assert!(out.stdout == expected.as_bytes(), "{file}: odgen gen differs from the Builder");
     assert!(stderr.contains(&format!("generated {module}.rs from {file}:")), "{stderr}");
 }
@@ -41,6 +52,7 @@ fn same_as_builder(file: &str, extra: &[&str]) {
 fn the_devices_and_fixtures_match_the_builder_byte_for_byte() {
     for d in ["devices/camozzi-drvi.eds", "devices/camozzi-drcs.eds", "devices/kollmorgen-akd.eds"] {
         same_as_builder(d, &["--strict", "--embed-eds"]);
+        same_as_builder(d, &["--client"]);
     }
     same_as_builder("od-codegen/tests/fixtures/mini.eds", &[]);
     same_as_builder("od-codegen/tests/fixtures/vendor-quirks.eds", &[]);
@@ -84,7 +96,7 @@ fn errors_exit_1_and_write_nothing_usage_errors_exit_2() {
     );
     assert!(out.stdout.is_empty());
     let text = std::fs::read_to_string(&out_file).unwrap();
-    assert_eq!(text, builder_text(quirks, "io", false, false));
+    assert_eq!(text, builder_text(quirks, "io", false, false, false));
     std::fs::remove_file(&out_file).unwrap();
 
     // Strict: the same deviations as errors, exit 1, nothing written.
@@ -112,7 +124,7 @@ fn output_files_are_written_safely() {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let file = "od-codegen/tests/fixtures/mini.eds";
-    let expected = builder_text(file, "mini", false, false);
+    let expected = builder_text(file, "mini", false, false, false);
 
     let target = dir.join("target.rs");
     std::fs::write(&target, "old").unwrap();
