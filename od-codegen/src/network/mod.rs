@@ -48,6 +48,7 @@
 //! `ParameterValue` (`0x00000182` for node 2), while its `DefaultValue` keeps `$NODEID+0x180`.
 //! Nothing is written when anything is wrong.
 
+pub mod concise;
 pub mod desc;
 pub mod diag;
 pub mod names;

@@ -3,6 +3,7 @@
 
 mod common;
 mod compile_all;
+mod concise;
 mod devices;
 mod fixtures;
 mod in_code;
