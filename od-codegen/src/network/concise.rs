@@ -278,23 +278,21 @@ fn pdo(cells: &[Cell<'_>], comm: u16, writes: &mut Vec<Write>) {
     for c in params {
         writes.push(c.write(Role::PdoParameter));
     }
-    if map_changed {
-        if let Some(count) = of(map).find(|c| c.entry.sub.0 == 0) {
-            let n = count.target.as_ref().and_then(|b| b.first().copied()).unwrap_or(0);
-            let mut clear = count.write(Role::MappingClear);
-            clear.data = vec![0];
-            writes.push(clear);
-            for c in of(map).filter(|c| (1..=n).contains(&c.entry.sub.0)) {
-                writes.push(c.write(Role::MappingEntry));
-            }
-            if n > 0 {
-                writes.push(count.write(Role::MappingCount));
-            }
+    if let Some(count) = of(map).find(|c| c.entry.sub.0 == 0).filter(|_| map_changed) {
+        let n = count.target.as_ref().and_then(|b| b.first().copied()).unwrap_or(0);
+        let mut clear = count.write(Role::MappingClear);
+        clear.data = vec![0];
+        writes.push(clear);
+        for c in of(map).filter(|c| (1..=n).contains(&c.entry.sub.0)) {
+            writes.push(c.write(Role::MappingEntry));
+        }
+        if n > 0 {
+            writes.push(count.write(Role::MappingCount));
         }
     }
-    if let (Some(c), Some(target)) = (cob, target) {
-        if target & 0x8000_0000 == 0 {
-            writes.push(c.write(Role::PdoEnable));
-        }
+    if let (Some(c), Some(target)) = (cob, target)
+        && target & 0x8000_0000 == 0
+    {
+        writes.push(c.write(Role::PdoEnable));
     }
 }
