@@ -13,7 +13,8 @@
 //! 2. the communication parameters that differ (transmission type, inhibit time, event timer,
 //!    SYNC start value), by sub-index;
 //! 3. if any mapping entry differs: the number of entries (mapping sub 0) set to 0, every entry
-//!    of the new mapping from 1 on, and the number of entries;
+//!    of the new mapping from 1 on (and any entry past them that is configured), and the number
+//!    of entries;
 //! 4. the COB-ID without bit 31 (left out when the PDO is to stay disabled).
 //!
 //! A PDO none of whose values differ is not touched. The order of the whole: the communication
@@ -283,7 +284,9 @@ fn pdo(cells: &[Cell<'_>], comm: u16, writes: &mut Vec<Write>) {
         let mut clear = count.write(Role::MappingClear);
         clear.data = vec![0];
         writes.push(clear);
-        for c in of(map).filter(|c| (1..=n).contains(&c.entry.sub.0)) {
+        // The new mapping's entries, and any other entry configured (CiA 301 lets entries past
+        // the count be written while the count is 0).
+        for c in of(map).filter(|c| (1..=n).contains(&c.entry.sub.0) || (c.entry.sub.0 > n && c.differs())) {
             writes.push(c.write(Role::MappingEntry));
         }
         if n > 0 {
