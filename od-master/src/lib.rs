@@ -9,6 +9,7 @@
 //! | events: boot-up, heartbeat lost/recovered, NMT state, EMCY with texts | [`Event`] | [`event`] |
 //! | CiA 402 drive: enable, homing, profile position/velocity, cyclic position | [`Axis`] | [`axis`] |
 //! | errors naming the node, the object and the abort code | [`Error`] | [`error`] |
+//! | a network configured at boot (CiA 302-2): identity, configuration, PDOs, start | [`boot::boot`] | [`boot`] |
 //! | a blocking facade for scripts, wrapping the async handles | [`blocking::Bus`] | [`blocking`] |
 //!
 //! The protocol is `od_runtime::master`'s (sans-IO state machines); the buses are `od-bus`'s.
@@ -18,12 +19,14 @@
 
 pub mod axis;
 pub mod blocking;
+pub mod boot;
 pub mod bus;
 pub mod error;
 pub mod event;
 pub mod node;
 
 pub use axis::{Axis, AxisConfig, Homing, Move};
+pub use boot::{BootError, BootOptions, Network, NodeReport};
 pub use bus::{Bus, Config, Tpdo};
 pub use error::{AxisError, AxisErrorKind, Error};
 pub use event::{EmcyTexts, Event};

@@ -8,8 +8,8 @@
 //! `ParameterValue` describes the device, it does not configure it. PDOs are written as whole
 //! units, so that the device never runs a half-written PDO:
 //!
-//! 1. the COB-ID (sub 1) with bit 31 set: the PDO is disabled (left out when the default is that
-//!    already);
+//! 1. the COB-ID (sub 1) with bit 31 set: the PDO is disabled (even when its default is disabled:
+//!    a node configured by an earlier boot runs it, and refuses a new mapping while it does);
 //! 2. the communication parameters that differ (transmission type, inhibit time, event timer,
 //!    SYNC start value), by sub-index;
 //! 3. if any mapping entry differs: the number of entries (mapping sub 0) set to 0, every entry
@@ -20,9 +20,10 @@
 //! A PDO none of whose values differ is not touched. The order of the whole: the communication
 //! profile's own entries (1000h–13FFh, 1C00h–1FFFh) first, then RPDOs, then TPDOs, then
 //! everything from 2000h on, each by index and sub-index. Lely's `dcfgen` makes the same writes
-//! in the same order for the example network, but for the differences `scripts/dcfgen-compare.py`
-//! lists (it rewrites every mapping it is given even when it equals the default, and writes
-//! every `sdo` entry given even when it equals the default).
+//! in the same order for the example network but for one kind: it leaves out the disabling
+//! write of a PDO whose default COB-ID is disabled already. Elsewhere it also rewrites every
+//! mapping it is given when that equals the default, and writes every `sdo` entry given when
+//! that equals the default (`scripts/dcfgen-compare.py` lists the differences).
 
 use eds::model::{DataType, Entry, Model, Value};
 
@@ -268,13 +269,13 @@ fn pdo(cells: &[Cell<'_>], comm: u16, writes: &mut Vec<Write>) {
     }
     let cob = cob.filter(|c| c.entry.access.writable());
     let target = cob.and_then(|c| Cell::u32(&c.target));
+    // Written even when the default is disabled already: the node may run the PDO from an
+    // earlier boot, and refuses a new mapping while it does.
     if let (Some(c), Some(target)) = (cob, target) {
         let disabled = target | 0x8000_0000;
-        if Cell::u32(&c.default) != Some(disabled) {
-            let mut w = c.write(Role::PdoDisable);
-            w.data = disabled.to_le_bytes()[..w.data.len().clamp(1, 4)].to_vec();
-            writes.push(w);
-        }
+        let mut w = c.write(Role::PdoDisable);
+        w.data = disabled.to_le_bytes()[..w.data.len().clamp(1, 4)].to_vec();
+        writes.push(w);
     }
     for c in params {
         writes.push(c.write(Role::PdoParameter));

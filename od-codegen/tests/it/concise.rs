@@ -119,8 +119,9 @@ proptest::proptest! {
     #![proptest_config(proptest::prelude::ProptestConfig { cases: 64, ..Default::default() })]
 
     /// Any subset of the example's configuration: applied to a device at its defaults, the
-    /// plan passes CiA 301's PDO rules and leaves every configured value in place, and it
-    /// writes nothing outside a PDO that is already the default.
+    /// plan passes CiA 301's PDO rules (also when applied again, as a second boot does) and
+    /// leaves every configured value in place, and it writes no parameter that is already the
+    /// default.
     #[test]
     fn a_plan_configures_a_device_at_its_defaults(keep in proptest::collection::vec(proptest::bool::ANY, 1..64)) {
         for dcf in example() {
@@ -132,6 +133,11 @@ proptest::proptest! {
                     proptest::prop_assert_ne!(device.values.get(&(w.index, w.sub)), Some(&w.data));
                 }
                 device.write(w.index, w.sub, &w.data).map_err(proptest::test_runner::TestCaseError::fail)?;
+            }
+            // A second boot (the node keeps the first one's configuration) passes the same
+            // rules: every PDO it touches is disabled first, whatever its default.
+            for w in &p.writes {
+                device.write(w.index, w.sub, &w.data).map_err(|e| proptest::test_runner::TestCaseError::fail(format!("second boot: {e}")))?;
             }
             for obj in model.objects.values() {
                 for e in obj.subs.values() {

@@ -2,6 +2,7 @@
 //! time, against hand-written faulty SDO servers, and over the socketcand hub on TCP.
 
 mod axis;
+mod boot;
 mod cli;
 mod events;
 mod faults;
