@@ -3,6 +3,7 @@
 
 mod axis;
 mod boot;
+mod boot_cli;
 mod cli;
 mod events;
 mod faults;
