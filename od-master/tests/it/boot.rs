@@ -241,3 +241,41 @@ tpdo1 = ["statusword", "position_actual_value"]
     ];
     assert_eq!(sent, want);
 }
+
+/// The checked-in DCFs of the example (generated/networks/example, `cargo xtask gen`) plan the
+/// same checks and writes as the description they were written from.
+#[test]
+fn the_example_dcfs_plan_what_the_description_plans() {
+    let dir = repo().join("generated/networks/example");
+    let dcfs: Vec<PathBuf> = ["x_axis", "y_axis", "z_axis"].iter().map(|n| dir.join(format!("{n}.dcf"))).collect();
+    let from_dcfs = Network::load(&dcfs).unwrap();
+    let from_description = example();
+    assert_eq!(from_dcfs.nodes.len(), 3);
+    for (a, b) in from_dcfs.nodes.iter().zip(&from_description.nodes) {
+        assert_eq!((&a.name, a.node_id), (&b.name, b.node_id));
+        assert_eq!(a.plan, b.plan, "{}", a.name);
+    }
+}
+
+/// Files that cannot be booted: each problem said, nothing sent.
+#[test]
+fn files_that_cannot_be_booted_are_refused_with_the_reason() {
+    let dir = repo().join("generated/networks/example");
+    let x = dir.join("x_axis.dcf");
+    let err = |files: &[PathBuf]| Network::load(files).unwrap_err().to_string();
+    // One DCF twice: one node id twice.
+    assert!(err(&[x.clone(), x.clone()]).contains("x_axis and x_axis both have node id 2"));
+    // A description with DCFs.
+    assert!(err(&[x.clone(), repo().join("networks/example.toml")]).contains("given alone"));
+    // An EDS (no [DeviceComissioning] NodeID).
+    let e = err(&[repo().join("devices/camozzi-drvi.eds")]);
+    assert!(e.contains("no node id") && e.contains("camozzi-drvi.eds"), "{e}");
+    // No such file; nothing at all.
+    assert!(err(&[dir.join("nope.dcf")]).starts_with("cannot read "));
+    assert!(err(&[]).contains("no network description"));
+    // A description with errors: the diagnostics, as odgen prints them.
+    let e = Network::from_description_text("net.toml", &repo().join("networks"), "[network]\nbaud_rate = 999\n")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("N0301") && e.contains("N0006"), "{e}");
+}
