@@ -17,13 +17,22 @@
 //!    mapping, enable): [`od_codegen::network::concise`] says which and in what order;
 //! 3. once every node has been tried, starts the nodes: one NMT start to all nodes when every
 //!    node was configured, as CiA 302-2's "start all nodes" does, or else an NMT start to each
-//!    node that was configured, so that a node that failed stays pre-operational.
+//!    node that was configured, so that a node that failed stays pre-operational;
+//! 4. waits for each started node that produces heartbeats (1017h, as configured) to send one
+//!    saying Operational, within three of its periods (at least 100 ms): CiA 302-2's "start
+//!    error control". A node that does not is a [`BootError::NoHeartbeat`].
 //!
 //! Nodes are booted at the same time (each node's transfers one after another on its own SDO
 //! channel). A node that fails does not stop the others: [`boot`] returns one [`NodeReport`]
 //! per node, saying what failed and at which object.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use od_bus::CanFrame;
+use tokio::sync::broadcast;
+use tokio::time::Instant;
 
 use od_codegen::network::concise::{self, Plan, Role};
 use od_runtime::master::nmt::Target;
@@ -219,6 +228,21 @@ pub enum BootError {
         /// The value the node gave.
         found: u32,
     },
+    /// The node was started and produces heartbeats (1017h), but none said Operational in
+    /// time: CiA 302-2's "start error control" (its error K).
+    #[error(
+        "node {node} ({name}): no heartbeat saying Operational within {waited_ms} ms of the NMT start (1017h = {heartbeat_ms} ms)"
+    )]
+    NoHeartbeat {
+        /// The node id.
+        node: u8,
+        /// The node's name.
+        name: String,
+        /// Its producer heartbeat time.
+        heartbeat_ms: u16,
+        /// How long boot waited.
+        waited_ms: u64,
+    },
     /// An SDO transfer or NMT command failed (the error names the node and the object).
     #[error("{name}, {stage}: {error}")]
     Bus {
@@ -236,6 +260,7 @@ impl BootError {
     pub fn object(&self) -> Option<(u16, u8)> {
         match self {
             BootError::Identity { index, sub, .. } => Some((*index, *sub)),
+            BootError::NoHeartbeat { .. } => Some((0x1017, 0)),
             BootError::Bus { error: Error::Sdo { error, .. }, .. } => Some((error.index, error.sub)),
             BootError::Bus { error: Error::Length { index, sub, .. }, .. } => Some((*index, *sub)),
             BootError::Bus { .. } => None,
@@ -293,9 +318,57 @@ pub async fn boot(bus: &Bus, network: &Network, options: &BootOptions) -> Vec<No
         }
     }
     if options.start {
+        // Subscribed before the start, so that no heartbeat after it is missed.
+        let mut frames = bus.frames();
         start(bus, &mut reports).await;
+        confirm(&mut frames, network, &mut reports).await;
     }
     reports
+}
+
+/// CiA 302-2's "start error control": each started node that produces heartbeats (1017h > 0)
+/// sends one saying Operational within three of its periods (at least 100 ms), or its report
+/// says it did not.
+async fn confirm(frames: &mut broadcast::Receiver<CanFrame>, network: &Network, reports: &mut [NodeReport]) {
+    let now = Instant::now();
+    let mut pending: BTreeMap<u8, (usize, u16, Instant)> = BTreeMap::new();
+    for (i, (r, node)) in reports.iter().zip(&network.nodes).enumerate() {
+        if r.started && r.result.is_ok() && node.plan.heartbeat_ms > 0 {
+            let wait = Duration::from_millis(u64::from(node.plan.heartbeat_ms) * 3).max(Duration::from_millis(100));
+            pending.insert(r.node_id, (i, node.plan.heartbeat_ms, now + wait));
+        }
+    }
+    while let Some(next) = pending.values().map(|p| p.2).min() {
+        match tokio::time::timeout_at(next, frames.recv()).await {
+            Ok(Ok(f)) => {
+                let operational = f.data().first().is_some_and(|s| s & 0x7F == 0x05);
+                if (0x701..=0x77F).contains(&f.id()) && f.data().len() == 1 && operational {
+                    pending.remove(&((f.id() - 0x700) as u8));
+                }
+            }
+            Ok(Err(broadcast::error::RecvError::Lagged(_))) => {}
+            // The bus has closed: nothing more will come.
+            Ok(Err(broadcast::error::RecvError::Closed)) => {
+                for (i, ..) in std::mem::take(&mut pending).into_values() {
+                    let r = &mut reports[i];
+                    r.result = Err(BootError::Bus { name: r.name.clone(), stage: Stage::Nmt, error: Error::Closed });
+                }
+            }
+            Err(_) => {
+                let late: Vec<u8> = pending.iter().filter(|(_, p)| p.2 <= next).map(|(id, _)| *id).collect();
+                for id in late {
+                    let Some((i, heartbeat_ms, deadline)) = pending.remove(&id) else { continue };
+                    let r = &mut reports[i];
+                    r.result = Err(BootError::NoHeartbeat {
+                        node: id,
+                        name: r.name.clone(),
+                        heartbeat_ms,
+                        waited_ms: u64::try_from((deadline - now).as_millis()).unwrap_or(u64::MAX),
+                    });
+                }
+            }
+        }
+    }
 }
 
 /// NMT start: to all nodes at once when all were configured, else to each configured one.

@@ -93,6 +93,9 @@ pub struct Plan {
     pub identity: Identity,
     /// The writes, in order.
     pub writes: Vec<Write>,
+    /// The producer heartbeat time (1017h, ms) the node runs once configured: its configured
+    /// value, or its default; 0 when it has none.
+    pub heartbeat_ms: u16,
 }
 
 /// A value of the DCF that cannot be written as its entry's type says.
@@ -253,7 +256,13 @@ pub fn plan(model: &Model, node_id: u8) -> Result<Plan, Vec<PlanError>> {
     for c in cells.iter().filter(|c| c.index >= 0x2000 && c.differs()) {
         writes.push(c.write(Role::Parameter));
     }
-    Ok(Plan { identity: identity(model, node_id), writes })
+    let heartbeat_ms = cells
+        .iter()
+        .find(|c| c.index == 0x1017 && c.entry.sub.0 == 0)
+        .and_then(|c| c.target.as_deref())
+        .and_then(|b| Some(u16::from_le_bytes(b.try_into().ok()?)))
+        .unwrap_or(0);
+    Ok(Plan { identity: identity(model, node_id), writes, heartbeat_ms })
 }
 
 /// The writes of one PDO (communication object `comm`, mapping `comm + 0x200`).

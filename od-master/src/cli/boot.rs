@@ -90,6 +90,7 @@ fn report_json(r: &NodeReport, device: &str) -> serde_json::Value {
     let stage = match &r.result {
         Err(BootError::Identity { .. }) => Some(boot::Stage::Identity.to_string()),
         Err(BootError::Bus { stage, .. }) => Some(stage.to_string()),
+        Err(BootError::NoHeartbeat { .. }) => Some(boot::Stage::Nmt.to_string()),
         Ok(()) => None,
     };
     json!({

@@ -279,3 +279,52 @@ fn files_that_cannot_be_booted_are_refused_with_the_reason() {
         .to_string();
     assert!(e.contains("N0301") && e.contains("N0006"), "{e}");
 }
+
+/// A node that takes its configuration and the NMT start but sends no heartbeat although its
+/// 1017h says it will: boot waits three heartbeat periods and says so (CiA 302-2's error K).
+#[tokio::test(start_paused = true)]
+async fn a_started_node_without_its_heartbeat_is_reported() {
+    let network = example();
+    let x = network.nodes[0].clone();
+    assert_eq!(x.plan.heartbeat_ms, 100);
+    let n = net(&[]);
+    // An SDO server for node 2 answering uploads with the identity the plan expects and every
+    // expedited download with success; it never sends a heartbeat.
+    let mut device = n.sim.lock().unwrap().endpoint();
+    let identity: BTreeMap<(u16, u8), u32> = x.plan.identity.checks().iter().map(|c| ((c.0, c.1), c.3)).collect();
+    tokio::spawn(async move {
+        loop {
+            while let Ok(Some(f)) = device.recv_timeout(Duration::ZERO) {
+                if f.id() != 0x602 || f.data().len() != 8 {
+                    continue;
+                }
+                let d = f.data();
+                let (index, sub) = (u16::from_le_bytes([d[1], d[2]]), d[3]);
+                let mut answer = [0u8; 8];
+                answer[1..4].copy_from_slice(&d[1..4]);
+                if d[0] == 0x40 {
+                    answer[0] = 0x43;
+                    answer[4..].copy_from_slice(&identity.get(&(index, sub)).copied().unwrap_or(0).to_le_bytes());
+                } else {
+                    answer[0] = 0x60;
+                }
+                device.send(od_bus::CanFrame::standard(0x582, &answer).unwrap()).unwrap();
+            }
+            tokio::time::sleep(Duration::from_micros(200)).await;
+        }
+    });
+    let one = Network { nodes: vec![x] };
+    let reports = boot::boot(&n.bus, &one, &BootOptions::default()).await;
+    let r = &reports[0];
+    assert!(r.started && r.written == r.planned, "{r:?}");
+    match &r.result {
+        Err(e @ BootError::NoHeartbeat { node: 2, heartbeat_ms: 100, waited_ms: 300, .. }) => {
+            assert_eq!(
+                e.to_string(),
+                "node 2 (x_axis): no heartbeat saying Operational within 300 ms of the NMT start (1017h = 100 ms)"
+            );
+            assert_eq!(e.object(), Some((0x1017, 0)));
+        }
+        other => panic!("{other:?}"),
+    }
+}
