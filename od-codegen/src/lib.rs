@@ -102,6 +102,7 @@ mod entry;
 pub mod ident;
 mod lit;
 mod lookup;
+pub mod network;
 pub mod pdo;
 mod plan;
 mod support;

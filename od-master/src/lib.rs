@@ -10,6 +10,7 @@
 //! | CiA 402 drive: enable, homing, profile position/velocity, cyclic position | [`Axis`] | [`axis`] |
 //! | errors naming the node, the object and the abort code | [`Error`] | [`error`] |
 //! | typed entries, PDOs and quantities for generated clients | [`remote::Object`] | [`remote`] |
+//! | a network configured at boot (CiA 302-2): identity, configuration, PDOs, start | [`boot::boot`] | [`boot`] |
 //! | a blocking facade for scripts, wrapping the async handles | [`blocking::Bus`] | [`blocking`] |
 //!
 //! The protocol is `od_runtime::master`'s (sans-IO state machines); the buses are `od-bus`'s.
@@ -19,6 +20,7 @@
 
 pub mod axis;
 pub mod blocking;
+pub mod boot;
 pub mod bus;
 pub mod error;
 pub mod event;
@@ -26,6 +28,7 @@ pub mod node;
 pub mod remote;
 
 pub use axis::{Axis, AxisConfig, Homing, HomingMethod, Move, UnitAxis};
+pub use boot::{BootError, BootOptions, Network, NodeReport};
 pub use bus::{Bus, Config, CyclicPdo, Tpdo};
 pub use error::{AxisError, AxisErrorKind, Error};
 pub use event::{EmcyTexts, Event};

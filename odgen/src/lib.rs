@@ -1,6 +1,7 @@
 //! `odgen` as a library: the parts of the command-line tool that other tools reuse.
 //!
-//! * [`network`]: DCFs for a whole network from one TOML description (`odgen dcf --network`).
+//! * [`network`]: DCFs for a whole network from one TOML description (`odgen dcf --network`);
+//!   it lives in `od_codegen::network`, where `od-master` boots the same description.
 //! * [`diff`]: what changed between two device descriptions (`odgen diff`, and `cargo xtask gen`
 //!   to report what a regeneration is about).
 //! * [`safe_write`]: writing a file the user named (through symbolic links, keeping mode and
@@ -8,5 +9,5 @@
 #![deny(missing_docs)]
 
 pub mod diff;
-pub mod network;
+pub use od_codegen::network;
 pub mod safe_write;

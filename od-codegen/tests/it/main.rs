@@ -4,6 +4,7 @@
 mod client;
 mod common;
 mod compile_all;
+mod concise;
 mod devices;
 mod fixtures;
 mod in_code;

@@ -1,5 +1,5 @@
 //! `od-master`: a CANopen master on the command line. Scan a bus, read and write objects,
-//! send NMT commands, watch the traffic in words, and drive a CiA 402 axis.
+//! send NMT commands, boot a network from its description, watch the traffic in words, and drive a CiA 402 axis.
 //!
 //! Exit codes: 0 ok, 1 an SDO abort, a timeout or a failed drive operation (one line naming
 //! the node and the object), 2 bad usage or a bus that cannot be opened.
@@ -102,6 +102,22 @@ enum Cmd {
         /// Stop after this many seconds.
         #[arg(long)]
         duration: Option<f64>,
+    },
+    /// Boots a network (CiA 302-2): checks each node's identity (1000h, 1018h), writes what
+    /// differs from its defaults, maps its PDOs, and starts the nodes.
+    Boot {
+        /// A network description (networks/*.toml), or one DCF per node.
+        #[arg(required = true, value_name = "FILE")]
+        files: Vec<PathBuf>,
+        /// Print what would be checked and written, without a bus.
+        #[arg(long)]
+        plan: bool,
+        /// Leave the nodes pre-operational.
+        #[arg(long)]
+        no_start: bool,
+        /// Boot the nodes one after another instead of at the same time.
+        #[arg(long)]
+        sequential: bool,
     },
     /// Drives a CiA 402 axis.
     Axis {
@@ -233,6 +249,18 @@ fn print_json(value: &serde_json::Value) {
 }
 
 async fn run(args: Args) -> Result<(), Fail> {
+    // `boot`: the network is read (and a plan printed) before any bus is opened.
+    let network = match &args.command {
+        Cmd::Boot { files, plan, .. } => {
+            let network = cli::boot::load(files).map_err(usage)?;
+            if *plan {
+                cli::boot::print_plan(&network, args.json);
+                return Ok(());
+            }
+            Some(network)
+        }
+        _ => None,
+    };
     let Some(addr) = args.bus.clone() else { return Err(usage("--bus ADDR is required")) };
     let devices = Devices::load(&args.eds)?;
     let mode = match args.sdo_mode.as_str() {
@@ -297,6 +325,13 @@ async fn run(args: Args) -> Result<(), Fail> {
                 od_master::Target::Node(od_master::NodeId::new(id).ok_or_else(|| usage("bad node id"))?)
             };
             bus.nmt(cmd, target).await.map_err(fail)?;
+        }
+        Cmd::Boot { no_start, sequential, .. } => {
+            let options = od_master::BootOptions { start: !no_start, concurrent: !sequential };
+            let network = network.unwrap_or_default();
+            if !cli::boot::run(&bus, &network, &options, args.json).await {
+                return Err(Fail(1, "the network did not boot: see the nodes above".to_owned()));
+            }
         }
         Cmd::Scan { last } => scan(&bus, last.clamp(1, 127), args.json, args.timeout).await?,
         Cmd::Monitor { count, duration } => monitor(&bus, &devices, count, duration, args.json).await?,

@@ -18,14 +18,14 @@ use crate::harness::node;
 const DRVI_EDS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../devices/camozzi-drvi.eds");
 
 /// A hub on a port the OS picks, with drives running on it in real time.
-struct Rig {
+pub(crate) struct Rig {
     hub: Hub,
     stop: Arc<AtomicBool>,
     threads: Vec<JoinHandle<()>>,
 }
 
 impl Rig {
-    fn start(nodes: &[(DeviceKind, u8)]) -> Self {
+    pub(crate) fn start(nodes: &[(DeviceKind, u8)]) -> Self {
         let hub = Hub::bind("127.0.0.1:0", HubConfig::default().quiet()).expect("bind the hub");
         let stop = Arc::new(AtomicBool::new(false));
         let threads = nodes
@@ -48,7 +48,7 @@ impl Rig {
     }
 
     /// Runs `od-master --bus <this hub> args...`.
-    fn cli(&self, args: &[&str]) -> Out {
+    pub(crate) fn cli(&self, args: &[&str]) -> Out {
         let mut all = vec!["--bus".to_owned(), self.bus()];
         all.extend(args.iter().map(|a| (*a).to_owned()));
         cli(&all)
@@ -65,14 +65,14 @@ impl Drop for Rig {
     }
 }
 
-struct Out {
-    code: i32,
-    stdout: String,
-    stderr: String,
+pub(crate) struct Out {
+    pub(crate) code: i32,
+    pub(crate) stdout: String,
+    pub(crate) stderr: String,
 }
 
 impl Out {
-    fn json_lines(&self) -> Vec<Value> {
+    pub(crate) fn json_lines(&self) -> Vec<Value> {
         self.stdout
             .lines()
             .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("not a JSON line: {l}: {e}")))
@@ -80,7 +80,7 @@ impl Out {
     }
 }
 
-fn cli<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Out {
+pub(crate) fn cli<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Out {
     let o: Output = Command::new(env!("CARGO_BIN_EXE_od-master")).args(args).stdin(Stdio::null()).output().unwrap();
     Out {
         code: o.status.code().unwrap_or(-1),

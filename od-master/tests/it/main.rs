@@ -2,6 +2,8 @@
 //! time, against hand-written faulty SDO servers, and over the socketcand hub on TCP.
 
 mod axis;
+mod boot;
+mod boot_cli;
 mod cli;
 mod client;
 mod client_ui;

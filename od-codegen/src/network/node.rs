@@ -3,8 +3,8 @@
 
 use std::ops::Range;
 
+use crate::pdo::MappingChecker;
 use eds::model::{DataType, Entry, Model, Value};
-use od_codegen::pdo::MappingChecker;
 use od_runtime::pdo::Direction;
 
 use super::desc::{Located, NodeDesc, PdoDesc, Reader, Scalar, pdo_name};
@@ -158,7 +158,7 @@ impl NodeCtx<'_> {
                     format!("the device has no object named `{text}`"),
                     name.span.clone(),
                 );
-                let snake = od_codegen::ident::snake(text);
+                let snake = crate::ident::snake(text);
                 let hint = match snake.as_deref() {
                     Some(s) if s != text && self.device.names.get(s).is_some() => {
                         Some(format!("names are the snake_case identifiers of ParameterName: write `{s}`"))

@@ -3,7 +3,7 @@
 //! A network file names each node's device description, node id and bit rate, the parameters to
 //! configure and the PDO mappings, by the same names the generated Rust uses. [`build`] checks
 //! everything (node ids, bit rates, names, and every mapping with the PDO rules the device runtime
-//! applies, `od_runtime::pdo::check_entry` through `od_codegen::pdo::MappingChecker`) and gives
+//! applies, `od_runtime::pdo::check_entry` through `crate::pdo::MappingChecker`) and gives
 //! one DCF per node, written by `eds::write::write_dcf` after `eds::write::configure`; or, if
 //! anything is wrong, every problem as a [`Diagnostic`] located in the TOML file (with the
 //! device description's object as a second location).
@@ -48,6 +48,7 @@
 //! `ParameterValue` (`0x00000182` for node 2), while its `DefaultValue` keeps `$NODEID+0x180`.
 //! Nothing is written when anything is wrong.
 
+pub mod concise;
 pub mod desc;
 pub mod diag;
 pub mod names;
@@ -262,9 +263,9 @@ pub fn build(display: &str, dir: &Path, text: &str) -> Outcome {
         let ctx = NodeCtx { reader: &reader, device, node, node_id, context: context.clone() };
         let mut values: Vec<Configured> = Vec::new();
         ctx.parameters(&mut values, &mut diags);
-        let checker = od_codegen::pdo::MappingChecker::new(
+        let checker = crate::pdo::MappingChecker::new(
             &device.parsed.model,
-            &od_codegen::Options::new("network", device.display.clone()),
+            &crate::Options::new("network", device.display.clone()),
         );
         for pdo in &node.pdos {
             ctx.pdo(pdo, &checker, &mut values, &mut diags);

@@ -3,8 +3,8 @@
 //! A network description names objects the way the generated Rust does: each entry by its
 //! accessor in the code `od-codegen` generates for the device (`Position actual value` →
 //! `position_actual_value`; `Identity object` / `Vendor-ID` → `identity_object_vendor_id`),
-//! taken from [`od_codegen::accessor_names`] so the two never disagree, and an ARRAY or RECORD
-//! by the name its entries' accessors start with ([`od_codegen::object_names`]). Objects that
+//! taken from [`crate::accessor_names`] so the two never disagree, and an ARRAY or RECORD
+//! by the name its entries' accessors start with ([`crate::object_names`]). Objects that
 //! hold no value (DEFTYPE, DEFSTRUCT, NULL) and entries of complex data types are not in the
 //! generated code and have no name here either; they can still be named by index
 //! (`0x2001sub1`).
@@ -37,12 +37,12 @@ impl NameIndex {
     /// Names the entries of `model` as the generated code does.
     pub fn new(model: &Model) -> Self {
         let mut out = NameIndex::default();
-        for (index, name) in od_codegen::object_names(model) {
+        for (index, name) in crate::object_names(model) {
             if model.objects.get(&eds::model::Index(index)).is_some_and(|o| o.object_type.has_subs()) {
                 out.objects.entry(name).or_insert(index);
             }
         }
-        for (index, sub, name) in od_codegen::accessor_names(model) {
+        for (index, sub, name) in crate::accessor_names(model) {
             out.by_entry.insert((index, sub), name.clone());
             out.entries.insert(name, (index, sub));
         }

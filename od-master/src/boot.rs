@@ -1,0 +1,450 @@
+//! A network configured at boot, as CiA 302-2 asks of a configuration manager: each node's
+//! identity checked, its configuration written, its PDOs mapped, and the nodes started.
+//!
+//! The network comes from a description (`networks/*.toml`, the format `odgen dcf --network`
+//! reads; see [`od_codegen::network`]) or from one DCF per node ([`Network::load`]). For each
+//! node, [`boot`]:
+//!
+//! 1. reads 1000h (device type) and 1018h sub 1, 2 and 3 (vendor id, product code, revision
+//!    number) and compares each with the value the file expects: the device description's
+//!    `[DeviceInfo]` `VendorNumber`, `ProductNumber`, `RevisionNumber` (or 1018h's default)
+//!    and 1000h's default. As CiA 302-2 does with its expected-identity objects 1F84h–1F87h, the
+//!    whole value is compared, and a value of 0 in the file is not checked. The serial number
+//!    (1018h sub 4) is not compared: a device description cannot know it. A wrong device is an
+//!    [`BootError::Identity`] naming the node, the object and both values;
+//! 2. sends NMT enter pre-operational, and writes the values that differ from the device
+//!    description's defaults, the PDOs in CiA 301's order (disable, communication parameters,
+//!    mapping, enable): [`od_codegen::network::concise`] says which and in what order;
+//! 3. once every node has been tried, starts the nodes: one NMT start to all nodes when every
+//!    node was configured, as CiA 302-2's "start all nodes" does, or else an NMT start to each
+//!    node that was configured, so that a node that failed stays pre-operational;
+//! 4. waits for each started node that produces heartbeats (1017h, as configured) to send one
+//!    saying Operational, within three of its periods (at least 100 ms): CiA 302-2's "start
+//!    error control". A node that does not is a [`BootError::NoHeartbeat`].
+//!
+//! Nodes are booted at the same time (each node's transfers one after another on its own SDO
+//! channel). A node that fails does not stop the others: [`boot`] returns one [`NodeReport`]
+//! per node, saying what failed and at which object.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use od_bus::CanFrame;
+use tokio::sync::broadcast;
+use tokio::time::Instant;
+
+use od_codegen::network::concise::{self, Plan, Role};
+use od_runtime::master::nmt::Target;
+use od_runtime::{NmtCommand, NodeId};
+
+use crate::bus::Bus;
+use crate::error::Error;
+
+/// One node to boot.
+#[derive(Clone, Debug)]
+pub struct BootNode {
+    /// Its name (the network file's table key, a DCF's `NodeName`, or the DCF's file name).
+    pub name: String,
+    /// Its node id.
+    pub node_id: u8,
+    /// The device description or DCF it was configured from, as shown in messages.
+    pub device: String,
+    /// What to check and write.
+    pub plan: Plan,
+}
+
+/// The nodes of a network, each with its plan.
+#[derive(Clone, Debug, Default)]
+pub struct Network {
+    /// In the order of the file (or of the DCFs given).
+    pub nodes: Vec<BootNode>,
+}
+
+/// Why a network description or a DCF cannot be booted. Its text lists every problem.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    /// A file cannot be read.
+    #[error("cannot read {path}: {error}")]
+    Io {
+        /// The file.
+        path: String,
+        /// Why.
+        error: std::io::Error,
+    },
+    /// The description or a DCF has errors (rendered as `odgen` renders them).
+    #[error("{0}")]
+    Invalid(String),
+}
+
+impl Network {
+    /// A network from files: one network description (`.toml`), or DCFs.
+    pub fn load(paths: &[PathBuf]) -> Result<Self, LoadError> {
+        match paths {
+            [one] if one.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml")) => Self::from_description(one),
+            [] => Err(LoadError::Invalid("no network description or DCF given".to_owned())),
+            dcfs => {
+                if let Some(toml) = dcfs.iter().find(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml")))
+                {
+                    return Err(LoadError::Invalid(format!(
+                        "{}: a network description is given alone, not with other files",
+                        toml.display()
+                    )));
+                }
+                let mut net = Network::default();
+                let mut problems = Vec::new();
+                for path in dcfs {
+                    match Self::dcf(path) {
+                        Ok(node) => net.nodes.push(node),
+                        Err(LoadError::Invalid(p)) => problems.push(p),
+                        Err(e) => return Err(e),
+                    }
+                }
+                let mut ids = std::collections::BTreeMap::new();
+                for n in &net.nodes {
+                    if let Some(first) = ids.insert(n.node_id, &n.name) {
+                        problems.push(format!("{} and {} both have node id {}", first, n.name, n.node_id));
+                    }
+                }
+                if problems.is_empty() { Ok(net) } else { Err(LoadError::Invalid(problems.join("\n"))) }
+            }
+        }
+    }
+
+    /// A network from a description file (device paths relative to it).
+    pub fn from_description(path: &Path) -> Result<Self, LoadError> {
+        let text =
+            std::fs::read_to_string(path).map_err(|error| LoadError::Io { path: path.display().to_string(), error })?;
+        let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        Self::from_description_text(&path.display().to_string(), dir, &text)
+    }
+
+    /// A network from a description's text: `display` names it in messages, device paths are
+    /// relative to `dir`.
+    pub fn from_description_text(display: &str, dir: &Path, text: &str) -> Result<Self, LoadError> {
+        let outcome = od_codegen::network::build(display, dir, text);
+        if outcome.has_errors() {
+            return Err(LoadError::Invalid(od_codegen::network::render_all(&outcome.diagnostics)));
+        }
+        let mut net = Network::default();
+        let mut problems = Vec::new();
+        for dcf in outcome.dcfs {
+            match concise::plan(&dcf.model, dcf.node_id) {
+                Ok(plan) => net.nodes.push(BootNode { name: dcf.name, node_id: dcf.node_id, device: dcf.device, plan }),
+                Err(e) => problems.extend(e.iter().map(|p| format!("node `{}` ({}): {p}", dcf.name, dcf.device))),
+            }
+        }
+        if problems.is_empty() { Ok(net) } else { Err(LoadError::Invalid(problems.join("\n"))) }
+    }
+
+    /// One node from its DCF: the node id from `[DeviceComissioning]` `NodeID`.
+    fn dcf(path: &Path) -> Result<BootNode, LoadError> {
+        let shown = path.display().to_string();
+        let parsed = eds::read_file(path, &eds::Options::lenient())
+            .map_err(|error| LoadError::Io { path: shown.clone(), error })?;
+        if parsed.has_errors() {
+            let first = parsed.errors().next().map(|d| d.message.clone()).unwrap_or_default();
+            return Err(LoadError::Invalid(format!(
+                "{shown}: the DCF has {} error(s) (`odgen check {shown}` lists them); first: {first}",
+                parsed.errors().count()
+            )));
+        }
+        let model = parsed.model;
+        let commissioning = model.commissioning.as_ref();
+        let Some(node_id) = commissioning.and_then(|c| c.node_id).filter(|id| (1..=127).contains(id)) else {
+            return Err(LoadError::Invalid(format!(
+                "{shown}: no node id: a DCF names its node in [DeviceComissioning] NodeID (1..=127)"
+            )));
+        };
+        let name = commissioning
+            .and_then(|c| c.node_name.clone())
+            .or_else(|| path.file_stem().map(|s| s.to_string_lossy().into_owned()))
+            .unwrap_or_else(|| format!("node {node_id}"));
+        let plan = concise::plan(&model, node_id).map_err(|e| {
+            LoadError::Invalid(e.iter().map(|p| format!("{shown}: {p}")).collect::<Vec<_>>().join("\n"))
+        })?;
+        Ok(BootNode { name, node_id, device: shown, plan })
+    }
+}
+
+/// What [`boot`] does beyond configuring.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BootOptions {
+    /// Start the nodes (NMT start) once configured (default true).
+    pub start: bool,
+    /// Boot the nodes at the same time (default true), or one after another.
+    pub concurrent: bool,
+}
+
+impl Default for BootOptions {
+    fn default() -> Self {
+        Self { start: true, concurrent: true }
+    }
+}
+
+/// The step of the boot a failure happened in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    /// Reading 1000h and 1018h.
+    Identity,
+    /// Writing the configuration and the PDOs.
+    Configure,
+    /// The NMT commands (pre-operational before configuring, start after).
+    Nmt,
+}
+
+impl std::fmt::Display for Stage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Stage::Identity => "checking the identity",
+            Stage::Configure => "writing the configuration",
+            Stage::Nmt => "NMT",
+        })
+    }
+}
+
+/// Why one node did not boot.
+#[derive(Debug, thiserror::Error)]
+pub enum BootError {
+    /// The node is another device than the file says.
+    #[error(
+        "node {node} ({name}): wrong device: {index:04X}h:{sub} {what} is 0x{found:08X}, {device} expects 0x{expected:08X}"
+    )]
+    Identity {
+        /// The node id.
+        node: u8,
+        /// The node's name.
+        name: String,
+        /// The file.
+        device: String,
+        /// 1000h or 1018h.
+        index: u16,
+        /// The sub-index.
+        sub: u8,
+        /// "vendor id", "product code", ...
+        what: &'static str,
+        /// The value the file expects.
+        expected: u32,
+        /// The value the node gave.
+        found: u32,
+    },
+    /// The node was started and produces heartbeats (1017h), but none said Operational in
+    /// time: CiA 302-2's "start error control" (its error K).
+    #[error(
+        "node {node} ({name}): no heartbeat saying Operational within {waited_ms} ms of the NMT start (1017h = {heartbeat_ms} ms)"
+    )]
+    NoHeartbeat {
+        /// The node id.
+        node: u8,
+        /// The node's name.
+        name: String,
+        /// Its producer heartbeat time.
+        heartbeat_ms: u16,
+        /// How long boot waited.
+        waited_ms: u64,
+    },
+    /// An SDO transfer or NMT command failed (the error names the node and the object).
+    #[error("{name}, {stage}: {error}")]
+    Bus {
+        /// The node's name.
+        name: String,
+        /// Where in the boot.
+        stage: Stage,
+        /// The transfer's error.
+        error: Error,
+    },
+}
+
+impl BootError {
+    /// The object the failure is about, if any.
+    pub fn object(&self) -> Option<(u16, u8)> {
+        match self {
+            BootError::Identity { index, sub, .. } => Some((*index, *sub)),
+            BootError::NoHeartbeat { .. } => Some((0x1017, 0)),
+            BootError::Bus { error: Error::Sdo { error, .. }, .. } => Some((error.index, error.sub)),
+            BootError::Bus { error: Error::Length { index, sub, .. }, .. } => Some((*index, *sub)),
+            BootError::Bus { .. } => None,
+        }
+    }
+}
+
+/// How one node's boot went.
+#[derive(Debug)]
+pub struct NodeReport {
+    /// The node's name.
+    pub name: String,
+    /// Its node id.
+    pub node_id: u8,
+    /// Writes made (all of the plan's when it succeeded).
+    pub written: usize,
+    /// Writes the plan has.
+    pub planned: usize,
+    /// Whether an NMT start was sent to it (or to all nodes).
+    pub started: bool,
+    /// Configured, or why not.
+    pub result: Result<(), BootError>,
+}
+
+/// Boots `network` on `bus`: see the [module](self) for the steps. One report per node, in the
+/// network's order; an error of one node never stops another.
+pub async fn boot(bus: &Bus, network: &Network, options: &BootOptions) -> Vec<NodeReport> {
+    let mut reports: Vec<NodeReport> = Vec::with_capacity(network.nodes.len());
+    if options.concurrent {
+        let mut tasks = tokio::task::JoinSet::new();
+        for (i, node) in network.nodes.iter().enumerate() {
+            let (bus, node) = (bus.clone(), node.clone());
+            tasks.spawn(async move { (i, configure(&bus, &node).await) });
+        }
+        let mut done: Vec<Option<NodeReport>> = network.nodes.iter().map(|_| None).collect();
+        while let Some(joined) = tasks.join_next().await {
+            if let Ok((i, report)) = joined {
+                done[i] = Some(report);
+            }
+        }
+        for (slot, node) in done.into_iter().zip(&network.nodes) {
+            // A task that panicked (a bug) still gives its node a report.
+            reports.push(slot.unwrap_or_else(|| NodeReport {
+                name: node.name.clone(),
+                node_id: node.node_id,
+                written: 0,
+                planned: node.plan.writes.len(),
+                started: false,
+                result: Err(BootError::Bus { name: node.name.clone(), stage: Stage::Configure, error: Error::Closed }),
+            }));
+        }
+    } else {
+        for node in &network.nodes {
+            reports.push(configure(bus, node).await);
+        }
+    }
+    if options.start {
+        // Subscribed before the start, so that no heartbeat after it is missed.
+        let mut frames = bus.frames();
+        start(bus, &mut reports).await;
+        confirm(&mut frames, network, &mut reports).await;
+    }
+    reports
+}
+
+/// CiA 302-2's "start error control": each started node that produces heartbeats (1017h > 0)
+/// sends one saying Operational within three of its periods (at least 100 ms), or its report
+/// says it did not.
+async fn confirm(frames: &mut broadcast::Receiver<CanFrame>, network: &Network, reports: &mut [NodeReport]) {
+    let now = Instant::now();
+    let mut pending: BTreeMap<u8, (usize, u16, Instant)> = BTreeMap::new();
+    for (i, (r, node)) in reports.iter().zip(&network.nodes).enumerate() {
+        if r.started && r.result.is_ok() && node.plan.heartbeat_ms > 0 {
+            let wait = Duration::from_millis(u64::from(node.plan.heartbeat_ms) * 3).max(Duration::from_millis(100));
+            pending.insert(r.node_id, (i, node.plan.heartbeat_ms, now + wait));
+        }
+    }
+    while let Some(next) = pending.values().map(|p| p.2).min() {
+        match tokio::time::timeout_at(next, frames.recv()).await {
+            Ok(Ok(f)) => {
+                let operational = f.data().first().is_some_and(|s| s & 0x7F == 0x05);
+                if (0x701..=0x77F).contains(&f.id()) && f.data().len() == 1 && operational {
+                    pending.remove(&((f.id() - 0x700) as u8));
+                }
+            }
+            Ok(Err(broadcast::error::RecvError::Lagged(_))) => {}
+            // The bus has closed: nothing more will come.
+            Ok(Err(broadcast::error::RecvError::Closed)) => {
+                for (i, ..) in std::mem::take(&mut pending).into_values() {
+                    let r = &mut reports[i];
+                    r.result = Err(BootError::Bus { name: r.name.clone(), stage: Stage::Nmt, error: Error::Closed });
+                }
+            }
+            Err(_) => {
+                let late: Vec<u8> = pending.iter().filter(|(_, p)| p.2 <= next).map(|(id, _)| *id).collect();
+                for id in late {
+                    let Some((i, heartbeat_ms, deadline)) = pending.remove(&id) else { continue };
+                    let r = &mut reports[i];
+                    r.result = Err(BootError::NoHeartbeat {
+                        node: id,
+                        name: r.name.clone(),
+                        heartbeat_ms,
+                        waited_ms: u64::try_from((deadline - now).as_millis()).unwrap_or(u64::MAX),
+                    });
+                }
+            }
+        }
+    }
+}
+
+/// NMT start: to all nodes at once when all were configured, else to each configured one.
+async fn start(bus: &Bus, reports: &mut [NodeReport]) {
+    if !reports.is_empty()
+        && reports.iter().all(|r| r.result.is_ok())
+        && bus.nmt(NmtCommand::Start, Target::All).await.is_ok()
+    {
+        reports.iter_mut().for_each(|r| r.started = true);
+        return;
+    }
+    // Some node failed (or the command to all could not be sent): each configured node on its
+    // own, each with its own error.
+    for r in reports.iter_mut().filter(|r| r.result.is_ok()) {
+        let Some(id) = NodeId::new(r.node_id) else { continue };
+        match bus.nmt(NmtCommand::Start, Target::Node(id)).await {
+            Ok(()) => r.started = true,
+            Err(error) => r.result = Err(BootError::Bus { name: r.name.clone(), stage: Stage::Nmt, error }),
+        }
+    }
+}
+
+/// Checks one node's identity and writes its configuration.
+async fn configure(bus: &Bus, boot: &BootNode) -> NodeReport {
+    let mut report = NodeReport {
+        name: boot.name.clone(),
+        node_id: boot.node_id,
+        written: 0,
+        planned: boot.plan.writes.len(),
+        started: false,
+        result: Ok(()),
+    };
+    report.result = run(bus, boot, &mut report.written).await;
+    report
+}
+
+async fn run(bus: &Bus, boot: &BootNode, written: &mut usize) -> Result<(), BootError> {
+    let fail = |stage| move |error| BootError::Bus { name: boot.name.clone(), stage, error };
+    let node = bus.node(boot.node_id).map_err(fail(Stage::Identity))?;
+    for (index, sub, what, expected) in boot.plan.identity.checks() {
+        if expected == 0 {
+            continue;
+        }
+        let found = node.read::<u32>(index, sub).await.map_err(fail(Stage::Identity))?;
+        if found != expected {
+            return Err(BootError::Identity {
+                node: boot.node_id,
+                name: boot.name.clone(),
+                device: boot.device.clone(),
+                index,
+                sub,
+                what,
+                expected,
+                found,
+            });
+        }
+    }
+    node.pre_operational().await.map_err(fail(Stage::Nmt))?;
+    for w in &boot.plan.writes {
+        // Every write of a configuration leaves the same state when made twice (a COB-ID, a
+        // count, a value): retried like a read after a lost answer.
+        node.write_bytes_idempotent(w.index, w.sub, &w.data).await.map_err(fail(Stage::Configure))?;
+        *written += 1;
+    }
+    Ok(())
+}
+
+/// The name of a write's role, as `--json` and the docs say it.
+pub fn role_name(role: Role) -> &'static str {
+    match role {
+        Role::Parameter => "parameter",
+        Role::PdoDisable => "pdo_disable",
+        Role::PdoParameter => "pdo_parameter",
+        Role::MappingClear => "mapping_clear",
+        Role::MappingEntry => "mapping_entry",
+        Role::MappingCount => "mapping_count",
+        Role::PdoEnable => "pdo_enable",
+    }
+}
