@@ -70,6 +70,9 @@ macro_rules! device_tests {
                             None => Err(AbortCode::NO_SUB_INDEX),
                         };
                         assert_eq!(Dictionary::position(index, sub), want, "0x{index:04X} sub {sub}");
+                        // A microcontroller's lookup (no direct table): a binary search.
+                        let sorted = od_runtime::__private_v2::position_sorted(&ENTRIES, index, sub);
+                        assert_eq!(sorted, want, "0x{index:04X} sub {sub}, binary search");
                         assert_eq!(od.info(index, sub).map(|e| (e.index, e.sub)), want.map(|_| (index, sub)));
                     }
                 }
