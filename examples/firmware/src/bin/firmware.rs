@@ -8,6 +8,8 @@
 use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicU32, Ordering};
 
+mod mem;
+
 use cortex_m_rt::{entry, exception};
 use firmware::Firmware;
 use firmware::bxcan::{BTR_500K_42MHZ, BxCan, CAN1};
