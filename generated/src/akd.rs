@@ -6619,7 +6619,7 @@ Denotation=MOTOR.BRAKEIMM
         entries: &ENTRIES,
     };
     /// Where a host finds each object's run of entries in one read (1 KB per page of
-    /// 256 indices); empty on a microcontroller, which looks entries up in `LOOKUP`.
+    /// 256 indices); empty on a microcontroller, which binary-searches `ENTRIES`.
     static DIRECT: [u32; ::od_runtime::__private_v2::direct_len(16)] = ::od_runtime::__private_v2::direct(
         &ENTRIES,
     );
@@ -29543,6 +29543,12 @@ Denotation=MOTOR.BRAKEIMM
         }
     }
     impl ::od_runtime::od::ObjectDictionary for Dictionary {
+        const SERVICES: ::od_runtime::od::Services = ::od_runtime::od::Services {
+            sync: true,
+            node_guarding: true,
+            heartbeat_consumer: true,
+            emcy_history: true,
+        };
         fn entries(&self) -> &'static [::od_runtime::od::EntryInfo] {
             &ENTRIES
         }

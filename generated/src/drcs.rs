@@ -3136,7 +3136,7 @@ PDOMapping=0
         entries: &ENTRIES,
     };
     /// Where a host finds each object's run of entries in one read (1 KB per page of
-    /// 256 indices); empty on a microcontroller, which looks entries up in `LOOKUP`.
+    /// 256 indices); empty on a microcontroller, which binary-searches `ENTRIES`.
     static DIRECT: [u32; ::od_runtime::__private_v2::direct_len(13)] = ::od_runtime::__private_v2::direct(
         &ENTRIES,
     );
@@ -14554,6 +14554,12 @@ PDOMapping=0
         }
     }
     impl ::od_runtime::od::ObjectDictionary for Dictionary {
+        const SERVICES: ::od_runtime::od::Services = ::od_runtime::od::Services {
+            sync: true,
+            node_guarding: true,
+            heartbeat_consumer: false,
+            emcy_history: true,
+        };
         fn entries(&self) -> &'static [::od_runtime::od::EntryInfo] {
             &ENTRIES
         }

@@ -598,7 +598,7 @@ PDOMapping=0
         entries: &ENTRIES,
     };
     /// Where a host finds each object's run of entries in one read (1 KB per page of
-    /// 256 indices); empty on a microcontroller, which looks entries up in `LOOKUP`.
+    /// 256 indices); empty on a microcontroller, which binary-searches `ENTRIES`.
     static DIRECT: [u32; ::od_runtime::__private_v2::direct_len(7)] = ::od_runtime::__private_v2::direct(
         &ENTRIES,
     );
@@ -2627,6 +2627,12 @@ PDOMapping=0
         }
     }
     impl ::od_runtime::od::ObjectDictionary for Dictionary {
+        const SERVICES: ::od_runtime::od::Services = ::od_runtime::od::Services {
+            sync: false,
+            node_guarding: false,
+            heartbeat_consumer: false,
+            emcy_history: false,
+        };
         fn entries(&self) -> &'static [::od_runtime::od::EntryInfo] {
             &ENTRIES
         }

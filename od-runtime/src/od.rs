@@ -549,6 +549,50 @@ pub(crate) fn pack_mapped(map: &[MappedHandle], mut read: impl FnMut(Handle) -> 
     word
 }
 
+/// The services of CiA 301 whose objects a dictionary may lack, and which a
+/// [`Device`](crate::Device) serves only when it has them: [`ObjectDictionary::SERVICES`].
+///
+/// A generated dictionary sets it from its EDS. It is a constant, so the code of a service
+/// the dictionary has no objects for is not linked into a firmware (the SDO server, NMT, EMCY,
+/// PDOs and the heartbeat producer are always there; the PDOs are sized by the generated
+/// `PDOS` and `MAPPED_PER_PDO`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Services {
+    /// SYNC consumer and producer (1005h; 1006h and 1019h configure them).
+    pub sync: bool,
+    /// Node guarding and life guarding (100Ch and 100Dh).
+    pub node_guarding: bool,
+    /// Heartbeat consumer (1016h).
+    pub heartbeat_consumer: bool,
+    /// EMCY error history (1003h).
+    pub emcy_history: bool,
+}
+
+impl Services {
+    /// Every service (the default of a hand-written dictionary: what it serves is then decided
+    /// by the objects it has, at run time).
+    pub const ALL: Self = Self { sync: true, node_guarding: true, heartbeat_consumer: true, emcy_history: true };
+
+    /// The services whose objects are among `entries` (sorted or not).
+    pub const fn of(entries: &[EntryInfo]) -> Self {
+        let (mut sync, mut guard_time, mut life_factor, mut consumer, mut history) =
+            (false, false, false, false, false);
+        let mut i = 0;
+        while i < entries.len() {
+            match entries[i].index {
+                0x1005 => sync = true,
+                0x100C => guard_time = true,
+                0x100D => life_factor = true,
+                0x1016 => consumer = true,
+                0x1003 => history = true,
+                _ => {}
+            }
+            i += 1;
+        }
+        Self { sync, node_guarding: guard_time && life_factor, heartbeat_consumer: consumer, emcy_history: history }
+    }
+}
+
 /// An object dictionary the runtime can serve.
 ///
 /// Values travel as little-endian bytes, as on the bus. Implementations check lengths and
@@ -562,6 +606,10 @@ pub(crate) fn pack_mapped(map: &[MappedHandle], mut read: impl FnMut(Handle) -> 
 /// can reach an entry faster by a number of its own (a position, an offset) overrides all three
 /// together, consistently.
 pub trait ObjectDictionary {
+    /// The optional services the dictionary has objects for (see [`Services`]); a generated
+    /// dictionary's are its EDS's. Default: [`Services::ALL`].
+    const SERVICES: Services = Services::ALL;
+
     /// Every entry's metadata, sorted by `(index, sub)`.
     fn entries(&self) -> &'static [EntryInfo];
 

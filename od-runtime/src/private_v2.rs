@@ -235,8 +235,11 @@ pub unsafe trait Table: Sized {
     fn entries() -> &'static [EntryInfo];
 }
 
-/// The value of entry `pos` of `D`'s table: `None` past the table.
-#[inline(always)]
+/// The value of entry `pos` of `D`'s table: `None` past the table. One copy on a
+/// microcontroller (`target_os = "none"`), where `read`, `read_handle` and `read_mapped` would
+/// each carry it.
+#[cfg_attr(target_os = "none", inline(never))]
+#[cfg_attr(not(target_os = "none"), inline(always))]
 pub fn slot<D: Table>(d: &D, pos: usize) -> Option<Slot<'_>> {
     let info = D::entries().get(pos)?;
     let base = (d as *const D).cast::<u8>();
@@ -266,8 +269,10 @@ pub fn slot<D: Table>(d: &D, pos: usize) -> Option<Slot<'_>> {
     }
 }
 
-/// The value of entry `pos` of `D`'s table, mutable: `None` past the table.
-#[inline(always)]
+/// The value of entry `pos` of `D`'s table, mutable: `None` past the table. One copy on a
+/// microcontroller, like [`slot`].
+#[cfg_attr(target_os = "none", inline(never))]
+#[cfg_attr(not(target_os = "none"), inline(always))]
 pub fn slot_mut<D: Table>(d: &mut D, pos: usize) -> Option<SlotMut<'_>> {
     let info = D::entries().get(pos)?;
     let base = (d as *mut D).cast::<u8>();

@@ -79,6 +79,18 @@ macro_rules! device_tests {
             }
 
             #[test]
+            fn the_services_are_those_the_dictionary_has_objects_for() {
+                use od_runtime::od::{ObjectDictionary, Services};
+                let s = <Dictionary as ObjectDictionary>::SERVICES;
+                assert_eq!(s, Services::of(&ENTRIES));
+                let has = |index: u16| ENTRIES.iter().any(|e| e.index == index);
+                assert_eq!(s.sync, has(0x1005));
+                assert_eq!(s.node_guarding, has(0x100C) && has(0x100D));
+                assert_eq!(s.heartbeat_consumer, has(0x1016));
+                assert_eq!(s.emcy_history, has(0x1003));
+            }
+
+            #[test]
             fn every_value_reads_back_and_restores() {
                 let mut od = Dictionary::new(3);
                 let mut buf = [0u8; 256];
