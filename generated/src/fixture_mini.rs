@@ -1774,8 +1774,10 @@ PDOMapping=0
             }
         }
         /// Stores a value given as bytes into the entry at `pos` of [`ENTRIES`], after the
-        /// runtime's checks (the shared body of `write` and `write_handle`).
-        #[inline]
+        /// runtime's checks (the shared body of `write` and `write_handle`; one copy of it
+        /// on a microcontroller).
+        #[cfg_attr(target_os = "none", inline(never))]
+        #[cfg_attr(not(target_os = "none"), inline)]
         fn write_at(
             &mut self,
             pos: usize,

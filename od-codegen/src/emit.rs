@@ -975,8 +975,10 @@ fn inherent_impl(
             }
 
             /// Stores a value given as bytes into the entry at `pos` of [`ENTRIES`], after the
-            /// runtime's checks (the shared body of `write` and `write_handle`).
-            #[inline]
+            /// runtime's checks (the shared body of `write` and `write_handle`; one copy of it
+            /// on a microcontroller).
+            #[cfg_attr(target_os = "none", inline(never))]
+            #[cfg_attr(not(target_os = "none"), inline)]
             fn write_at(&mut self, pos: usize, data: &[u8]) -> Result<(), ::od_runtime::od::AbortCode> {
                 #real_limits
                 match (ENTRIES.get(pos), self.slot_mut(pos)) {

@@ -237,7 +237,8 @@ impl<const M: usize> Tpdo<M> {
     }
 
     /// Whether the inhibit time since the last transmission still runs at `now`.
-    #[inline(always)]
+    #[cfg_attr(target_os = "none", inline(never))]
+    #[cfg_attr(not(target_os = "none"), inline(always))]
     fn inhibited(&self, now: Micros) -> bool {
         self.inhibit != 0 && self.sent_once && now < later(self.last_tx, self.inhibit)
     }
@@ -771,7 +772,8 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
             }
             let v = le_u32(data);
             if data.len() == 4 && v != 0 {
-                pdo::check_entry(dir, v, pdo_lookup(&self.od))?;
+                // `&mut`, as `check_mapping` passes it: one copy of `check_entry`.
+                pdo::check_entry(dir, v, &mut pdo_lookup(&self.od))?;
             }
         }
         Ok(())
@@ -1654,6 +1656,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
         self.apply_sdo_reset();
     }
 
+    #[cfg_attr(target_os = "none", inline(never))]
     fn apply_sdo_reset(&mut self) {
         if self.core.sdo_reset {
             self.core.sdo_reset = false;

@@ -391,7 +391,8 @@ impl EntryInfo {
 
     /// Size in bits for fixed-size types (1 for BOOLEAN); the capacity in bits for
     /// variable-length types.
-    #[inline]
+    #[cfg_attr(target_os = "none", inline(never))]
+    #[cfg_attr(not(target_os = "none"), inline)]
     pub const fn bits(&self) -> u32 {
         // The row's own byte for a fixed-size value (most entries): no read of the extras and
         // no work on the data type.
