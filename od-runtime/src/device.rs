@@ -422,7 +422,10 @@ pub struct Device<
 }
 
 /// The first (up to) four bytes of `data` as a little-endian number. Assembled byte by byte:
-/// a copy of variable length would be a `memcpy` call on the RPDO path.
+/// a copy of variable length would be a `memcpy` call on the RPDO path. Inlined on a host
+/// (a call was a tenth of the controlword's RPDO path), one copy on a microcontroller.
+#[cfg_attr(target_os = "none", inline(never))]
+#[cfg_attr(not(target_os = "none"), inline(always))]
 fn le_u32(data: &[u8]) -> u32 {
     let mut v = 0u32;
     for (i, b) in data.iter().take(4).enumerate() {
@@ -812,6 +815,22 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
         Ok(())
     }
 
+    /// [`Core::write_resolved`] of an entry without side effects ([`has_side_effects`] false).
+    #[inline(always)]
+    fn write_plain(
+        &mut self,
+        index: u16,
+        sub: u8,
+        h: Handle,
+        data: &[u8],
+        source: WriteSource,
+    ) -> Result<(), AbortCode> {
+        self.app.on_write(&self.od, index, sub, data, source)?;
+        self.od.write_handle(h, data)?;
+        self.event(Event::Written { index, sub, source });
+        Ok(())
+    }
+
     /// The rules of the objects with side effects, before a write: `Err` refuses the write,
     /// `Ok(true)` means the write was carried out here in full (store/restore, clearing the
     /// error history), `Ok(false)` that it goes on to the dictionary.
@@ -1093,11 +1112,22 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
         }
     }
 
+    #[cfg_attr(target_os = "none", inline(never))]
+    #[cfg_attr(not(target_os = "none"), inline(always))]
     fn drive_transitions(&mut self, ts: Transitions) {
-        if ts.is_empty() {
-            // Most controlwords repeat the last one: no transition, no statusword change.
-            return;
+        // Most controlwords repeat the last one: no transition, no statusword change, and no
+        // call on the RPDO path.
+        if !ts.is_empty() {
+            self.apply_transitions(ts);
         }
+    }
+
+    /// The effects of the state machine's transitions `ts`: fault reset, events, statusword.
+    /// Out of line on a host (the RPDO path only tests for transitions); a microcontroller has
+    /// one function for both.
+    #[cfg_attr(target_os = "none", inline(always))]
+    #[cfg_attr(not(target_os = "none"), inline(never))]
+    fn apply_transitions(&mut self, ts: Transitions) {
         for t in ts.iter() {
             if t.number == 15 {
                 // Fault reset: clear 603Fh and the error register bits of that fault (all bits
@@ -1208,6 +1238,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
     /// Writes the entries of RPDO `n` from its data: each one's bits cut out of one 64-bit
     /// word, then written through its handle by [`Core::write_resolved`] (which applies the
     /// rules of the objects with side effects).
+    #[cfg_attr(not(target_os = "none"), inline(always))]
     fn apply_rpdo(&mut self, n: usize, data: [u8; 8]) {
         let word = u64::from_le_bytes(data);
         let count = self.rpdo.get(n).map_or(0, |r| usize::from(r.count));
@@ -1219,7 +1250,15 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
                 let v = low_bits(word >> (offset & 63), bits);
                 let bytes = v.to_le_bytes();
                 let len = (e.bits as usize).div_ceil(8).min(8);
-                let _ = self.write_resolved(e.index, e.sub, Some(e.handle), &bytes[..len], WriteSource::Rpdo(n as u16));
+                let (data, source) = (&bytes[..len], WriteSource::Rpdo(n as u16));
+                // A microcontroller keeps one path (flash); a host writes the plain entries
+                // (most of a PDO) here: the application's veto, the dictionary and the event,
+                // without `write_resolved`'s call.
+                if cfg!(target_os = "none") || has_side_effects(e.index) {
+                    let _ = self.write_resolved(e.index, e.sub, Some(e.handle), data, source);
+                } else {
+                    let _ = self.write_plain(e.index, e.sub, e.handle, data, source);
+                }
             }
             offset += bits;
         }
