@@ -776,24 +776,34 @@ impl EntryInfo {
         if data.len() < len {
             return Err(AbortCode::LENGTH_TOO_LOW);
         }
-        if !self.data_type.is_integer() || len > 16 {
+        if !self.data_type.is_integer() || len > 8 {
             return Ok(());
         }
-        if !self.limited() && self.data_type != DataType::Boolean {
-            return Ok(());
+        // A fixed-size integer of `len` (at most 8) bytes, compared in 64 bits: as unsigned
+        // numbers for the unsigned types (their limits' 64 bits read unsigned), as signed ones
+        // for the signed types. The same order as `low`/`high`'s 128-bit numbers, without
+        // 128-bit arithmetic (half of this function's code on a 32-bit microcontroller).
+        let mut raw = 0u64;
+        for (i, b) in data.iter().take(8).enumerate() {
+            raw |= u64::from(*b) << (8 * i);
         }
-        let value = decode_int(data, self.data_type.is_signed());
-        if self.data_type == DataType::Boolean && value > 1 {
+        if self.data_type == DataType::Boolean && raw > 1 {
             return Err(AbortCode::INVALID_VALUE);
         }
-        if let Some(high) = self.high()
-            && value > high
-        {
+        let Some(&EntryExtras { limits: Some(&Limits { low, high }), .. }) = self.extras else {
+            return Ok(());
+        };
+        let (above, below) = if self.data_type.is_signed() {
+            let shift = (64 - 8 * len as u32) & 63;
+            let v = ((raw << shift) as i64) >> shift;
+            (v > high, v < low)
+        } else {
+            (raw > high as u64, raw < low as u64)
+        };
+        if above {
             return Err(AbortCode::VALUE_TOO_HIGH);
         }
-        if let Some(low) = self.low()
-            && value < low
-        {
+        if below {
             return Err(AbortCode::VALUE_TOO_LOW);
         }
         Ok(())
