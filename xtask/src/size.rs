@@ -199,8 +199,8 @@ pub fn main(args: &[String]) -> Result<(), String> {
         rows.push((dev, entries, image));
     }
     println!(
-        "{:<6} {:>7} {:>7} {:>8} {:>8} {:>6} {:>6} {:>8} {:>7}",
-        "device", "entries", "vectors", ".text", ".rodata", ".data", ".bss", "flash", "RAM"
+        "{:<6} {:>7} {:>7} {:>8} {:>8} {:>6} {:>6} {:>8} {:>7} {:>6}",
+        "device", "entries", "vectors", ".text", ".rodata", ".data", ".bss", "flash", "RAM", "stack"
     );
     for (dev, entries, img) in &rows {
         let s = img.sizes;
