@@ -8,6 +8,7 @@
 use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicU32, Ordering};
 
+#[path = "firmware/mem.rs"]
 mod mem;
 
 use cortex_m_rt::{entry, exception};
