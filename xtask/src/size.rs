@@ -334,7 +334,12 @@ mod tests {
             fmt_symbols: fmt.iter().map(|s| s.to_string()).collect(),
             stack: ram / 4,
         };
-        assert!(check(&[("drcs", 300, img(25_000, 4000, &[])), ("akd", 500, img(28_200, 4000, &[]))]).is_ok());
+        assert!(check(&[("drcs", 300, img(20_480, 4096, &[])), ("akd", 500, img(23_680, 4000, &[]))]).is_ok());
+        // One byte over each budget.
+        let e = check(&[("drcs", 300, img(20_481, 4097, &[])), ("akd", 500, img(23_682, 4000, &[]))]).unwrap_err();
+        assert!(e.contains("20481 bytes of flash, budget 20480"), "{e}");
+        assert!(e.contains("4097 bytes of RAM, budget 4096"), "{e}");
+        assert!(e.contains("16.0 bytes of flash per entry"), "{e}");
         let e = check(&[
             ("drcs", 300, img(40_000, 5000, &[])),
             ("akd", 500, img(50_000, 4000, &["_ZN4core3fmt5write17h0E"])),
