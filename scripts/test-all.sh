@@ -80,6 +80,8 @@ cargo check --workspace --bins --features drive/socketcan --locked
 step "firmware size budget (thumbv7em-none-eabihf, cargo xtask size)"
 rustup target add thumbv7em-none-eabihf
 cargo xtask size
+# od-runtime without the services a firmware may leave out (sdo-block, cia402, store).
+cargo clippy -p od-runtime --no-default-features --features embedded-can --lib --locked -- -D warnings
 
 # The Python tests wait on the simulated drives' real time, not on the CPU (in one process:
 # 6.4 minutes of wall time for 35 s of CPU), and every drive-sim, hub and client listens on a

@@ -3133,7 +3133,7 @@ PDOMapping=0
         entries: &ENTRIES,
     };
     /// Where a host finds each object's run of entries in one read (1 KB per page of
-    /// 256 indices); empty on a microcontroller, which looks entries up in `LOOKUP`.
+    /// 256 indices); empty on a microcontroller, which binary-searches `ENTRIES`.
     static DIRECT: [u32; ::od_runtime::__private_v2::direct_len(8)] = ::od_runtime::__private_v2::direct(
         &ENTRIES,
     );
@@ -9769,8 +9769,10 @@ PDOMapping=0
             }
         }
         /// Stores a value given as bytes into the entry at `pos` of [`ENTRIES`], after the
-        /// runtime's checks (the shared body of `write` and `write_handle`).
-        #[inline]
+        /// runtime's checks (the shared body of `write` and `write_handle`; one copy of it
+        /// on a microcontroller).
+        #[cfg_attr(target_os = "none", inline(never))]
+        #[cfg_attr(not(target_os = "none"), inline)]
         fn write_at(
             &mut self,
             pos: usize,
@@ -14986,6 +14988,12 @@ PDOMapping=0
         }
     }
     impl ::od_runtime::od::ObjectDictionary for Dictionary {
+        const SERVICES: ::od_runtime::od::Services = ::od_runtime::od::Services {
+            sync: true,
+            node_guarding: true,
+            heartbeat_consumer: false,
+            emcy_history: true,
+        };
         fn entries(&self) -> &'static [::od_runtime::od::EntryInfo] {
             &ENTRIES
         }

@@ -975,8 +975,10 @@ fn inherent_impl(
             }
 
             /// Stores a value given as bytes into the entry at `pos` of [`ENTRIES`], after the
-            /// runtime's checks (the shared body of `write` and `write_handle`).
-            #[inline]
+            /// runtime's checks (the shared body of `write` and `write_handle`; one copy of it
+            /// on a microcontroller).
+            #[cfg_attr(target_os = "none", inline(never))]
+            #[cfg_attr(not(target_os = "none"), inline)]
             fn write_at(&mut self, pos: usize, data: &[u8]) -> Result<(), ::od_runtime::od::AbortCode> {
                 #real_limits
                 match (ENTRIES.get(pos), self.slot_mut(pos)) {
@@ -1016,8 +1018,24 @@ fn inherent_impl(
     }
 }
 
+/// `ObjectDictionary::SERVICES`: the optional services whose objects the dictionary has (the
+/// rule of `od_runtime::od::Services::of`, which the generated devices' tests hold it to). A
+/// constant, so the runtime links no code for the others.
+fn services(plan: &Plan<'_>) -> TokenStream {
+    let has = |index: u16| plan.entries.iter().any(|e| e.index == index);
+    let (sync, guarding, consumer, history) = (has(0x1005), has(0x100C) && has(0x100D), has(0x1016), has(0x1003));
+    quote! {
+        const SERVICES: ::od_runtime::od::Services = ::od_runtime::od::Services {
+            sync: #sync,
+            node_guarding: #guarding,
+            heartbeat_consumer: #consumer,
+            emcy_history: #history,
+        };
+    }
+}
+
 /// The runtime's `Table` and `ObjectDictionary` implementations for `Dictionary`.
-fn trait_impls(name_fn: TokenStream) -> TokenStream {
+fn trait_impls(name_fn: TokenStream, services: TokenStream) -> TokenStream {
     let rt = rt();
     quote! {
         // SAFETY: every slot in ENTRIES is `offset::<T>(offset_of!(Dictionary, field), …)` of
@@ -1030,6 +1048,8 @@ fn trait_impls(name_fn: TokenStream) -> TokenStream {
         }
 
         impl ::od_runtime::od::ObjectDictionary for Dictionary {
+            #services
+
             fn entries(&self) -> &'static [::od_runtime::od::EntryInfo] {
                 &ENTRIES
             }
@@ -1113,7 +1133,7 @@ pub(crate) fn dictionary(
     let name_fn = name_fn(names);
     let accessors = accessors(plan, sidecar, parts);
     let inherent = inherent_impl(new_fn, zeroed_fn, real_limits, accessors);
-    let traits = trait_impls(name_fn);
+    let traits = trait_impls(name_fn, services(plan));
     quote! {
         #struct_item
 

@@ -115,7 +115,7 @@ pub(crate) fn tokens(keys: &[(u16, u8)]) -> Option<TokenStream> {
         };
 
         /// Where a host finds each object's run of entries in one read (1 KB per page of
-        /// 256 indices); empty on a microcontroller, which looks entries up in `LOOKUP`.
+        /// 256 indices); empty on a microcontroller, which binary-searches `ENTRIES`.
         static DIRECT: [u32; #rt::direct_len(#n_pages)] = #rt::direct(&ENTRIES);
     })
 }
@@ -137,8 +137,8 @@ mod tests {
         direct: &'static [u32],
     }
 
-    /// The position by every path there is: the compact lookup (a microcontroller's), the
-    /// direct one (a host's) and the runtime's choice between them, which must all agree.
+    /// The position by every path there is: the compact lookup, the direct one (a host's), the
+    /// binary search (a microcontroller's) and the runtime's choice, which must all agree.
     fn position(b: &Both, index: u16, sub: u8) -> Result<usize, AbortCode> {
         let found = compact(&b.tables, index, sub);
         assert_eq!(
@@ -147,6 +147,8 @@ mod tests {
             "direct {index:#06x} {sub}"
         );
         assert_eq!(runtime_lookup(&b.tables, b.direct, b.tables.entries, index, sub), found);
+        // Without a direct table (a microcontroller): a binary search of the entries.
+        assert_eq!(runtime_lookup(&b.tables, &[], b.tables.entries, index, sub), found, "sorted {index:#06x} {sub}");
         found
     }
 

@@ -190,6 +190,7 @@ impl StateMachine {
         self.state
     }
 
+    #[cfg_attr(target_os = "none", inline(never))]
     fn go(&mut self, out: &mut Transitions, number: u8, to: State) {
         out.push(Transition { number, from: self.state, to });
         self.state = to;

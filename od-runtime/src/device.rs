@@ -162,11 +162,18 @@ impl<OD> App<OD> for () {}
 /// One entry of a loaded PDO mapping, resolved to a [`Handle`] when the mapping was loaded.
 type Mapped = MappedHandle;
 
+/// Whether the CiA 402 state machine is built in (cargo feature `cia402`).
+const CIA402: bool = cfg!(feature = "cia402");
+/// Whether SDO block transfers are built in (cargo feature `sdo-block`).
+pub(crate) const SDO_BLOCK: bool = cfg!(feature = "sdo-block");
+/// Whether store/restore through [`Storage`] is built in (cargo feature `store`).
+const STORE: bool = cfg!(feature = "store");
+
 /// Whether a write of `index` has effects beyond the dictionary (communication objects, the
 /// CiA 402 controlword and modes of operation): such writes take [`Core::write_entry`]'s full
 /// path, every other RPDO-mapped entry goes straight to the dictionary.
 const fn has_side_effects(index: u16) -> bool {
-    (index >= 0x1000 && index <= 0x1FFF) || index == 0x6040 || index == 0x6060
+    (index >= 0x1000 && index <= 0x1FFF) || (CIA402 && (index == 0x6040 || index == 0x6060))
 }
 
 #[derive(Clone, Copy)]
@@ -230,9 +237,10 @@ impl<const M: usize> Tpdo<M> {
     }
 
     /// Whether the inhibit time since the last transmission still runs at `now`.
-    #[inline(always)]
+    #[cfg_attr(target_os = "none", inline(never))]
+    #[cfg_attr(not(target_os = "none"), inline(always))]
     fn inhibited(&self, now: Micros) -> bool {
-        self.inhibit != 0 && self.sent_once && now < self.last_tx.saturating_add(self.inhibit)
+        self.inhibit != 0 && self.sent_once && now < later(self.last_tx, self.inhibit)
     }
 
     /// The loaded mapping.
@@ -248,7 +256,7 @@ impl<const M: usize> Tpdo<M> {
         self.sent_once = true;
         self.requested = false;
         self.last_tx = now;
-        self.next_event = now.saturating_add(self.event);
+        self.next_event = later(now, self.event);
     }
 
     fn restart(&mut self, now: Micros) {
@@ -258,7 +266,7 @@ impl<const M: usize> Tpdo<M> {
         self.started = false;
         self.due = false;
         self.rtr = false;
-        self.next_event = now.saturating_add(self.event);
+        self.next_event = later(now, self.event);
     }
 }
 
@@ -414,13 +422,31 @@ pub struct Device<
 }
 
 /// The first (up to) four bytes of `data` as a little-endian number. Assembled byte by byte:
-/// a copy of variable length would be a `memcpy` call on the RPDO path.
+/// a copy of variable length would be a `memcpy` call on the RPDO path. Inlined on a host
+/// (a call was a tenth of the controlword's RPDO path), one copy on a microcontroller.
+#[cfg_attr(target_os = "none", inline(never))]
+#[cfg_attr(not(target_os = "none"), inline(always))]
 fn le_u32(data: &[u8]) -> u32 {
     let mut v = 0u32;
     for (i, b) in data.iter().take(4).enumerate() {
         v |= u32::from(*b) << (8 * i);
     }
     v
+}
+
+/// `at + delay`, saturating: a time in the future. Out of line on a microcontroller, where
+/// each of a dozen 64-bit additions inlined costs more than the call.
+#[cfg_attr(target_os = "none", inline(never))]
+#[cfg_attr(not(target_os = "none"), inline(always))]
+fn later(at: Micros, delay: Micros) -> Micros {
+    at.saturating_add(delay)
+}
+
+/// Reads an unsigned value of up to 4 bytes, `default` when the dictionary has none: the
+/// communication parameters' reads. Out of line on a microcontroller (two dozen callers).
+#[cfg_attr(target_os = "none", inline(never))]
+fn read_or<OD: ObjectDictionary>(od: &OD, index: u16, sub: u8, default: u32) -> u32 {
+    read_uint(od, index, sub).unwrap_or(default)
 }
 
 /// Reads an unsigned value of up to 4 bytes.
@@ -451,6 +477,27 @@ fn pack<OD: ObjectDictionary, A: App<OD>>(od: &OD, app: &mut A, map: &[Mapped]) 
 }
 
 impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usize> Core<OD, A, S, P, M> {
+    /// SYNC consumer and producer: the dictionary has 1005h.
+    const SYNC: bool = OD::SERVICES.sync;
+    /// Node guarding: the dictionary has 100Ch and 100Dh.
+    const GUARDING: bool = OD::SERVICES.node_guarding;
+    /// Heartbeat consumer: the dictionary has 1016h.
+    const CONSUMER: bool = OD::SERVICES.heartbeat_consumer;
+    /// EMCY history: the dictionary has 1003h.
+    const HISTORY: bool = OD::SERVICES.emcy_history;
+
+    /// The CiA 402 state machine, when built in and the dictionary has one.
+    #[inline(always)]
+    fn drive(&self) -> Option<StateMachine> {
+        if CIA402 { self.drive } else { None }
+    }
+
+    /// The CiA 402 state machine, mutably.
+    #[inline(always)]
+    fn drive_mut(&mut self) -> Option<&mut StateMachine> {
+        if CIA402 { self.drive.as_mut() } else { None }
+    }
+
     fn event(&mut self, e: Event) {
         self.app.on_event(&mut self.od, e);
     }
@@ -470,7 +517,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
         self.reload(0x1017);
         self.reload(0x100C);
         self.reload(0x1200);
-        self.history_len = self.entries_with(0x1003);
+        self.history_len = if Self::HISTORY { self.entries_with(0x1003) } else { 0 };
         for n in 0..P {
             self.load_pdo(Direction::Receive, n);
             self.load_pdo(Direction::Transmit, n);
@@ -481,29 +528,29 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
     fn reload(&mut self, index: u16) {
         let node = u32::from(self.node);
         match index {
-            0x1005 | 0x1006 | 0x1019 => {
-                let cob = read_uint(&self.od, 0x1005, 0).unwrap_or(0x80);
+            0x1005 | 0x1006 | 0x1019 if Self::SYNC => {
+                let cob = read_or(&self.od, 0x1005, 0, 0x80);
                 self.sync_cob = (cob & 0x7FF) as u16;
                 self.sync_producer = cob & 0x4000_0000 != 0;
-                self.sync_period = Micros::from(read_uint(&self.od, 0x1006, 0).unwrap_or(0));
-                self.sync_overflow = read_uint(&self.od, 0x1019, 0).unwrap_or(0) as u8;
-                self.sync_next = self.now.saturating_add(self.sync_period);
+                self.sync_period = Micros::from(read_or(&self.od, 0x1006, 0, 0));
+                self.sync_overflow = read_or(&self.od, 0x1019, 0, 0) as u8;
+                self.sync_next = later(self.now, self.sync_period);
                 self.sync_counter = 1;
             }
             0x1014 | 0x1015 => {
-                let cob = read_uint(&self.od, 0x1014, 0).unwrap_or(0x80 + node);
+                let cob = read_or(&self.od, 0x1014, 0, 0x80 + node);
                 self.emcy_cob = (cob & 0x7FF) as u16;
                 self.emcy_valid = cob & 0x8000_0000 == 0;
-                self.emcy_inhibit = Micros::from(read_uint(&self.od, 0x1015, 0).unwrap_or(0)) * 100;
+                self.emcy_inhibit = Micros::from(read_or(&self.od, 0x1015, 0, 0)) * 100;
             }
-            0x1016 => {
+            0x1016 if Self::CONSUMER => {
                 let n = self.entries_with(0x1016);
                 let mut k = 0;
                 for sub in 1..=n {
                     if k == MAX_HEARTBEAT_CONSUMERS {
                         break;
                     }
-                    let v = read_uint(&self.od, 0x1016, sub).unwrap_or(0);
+                    let v = read_or(&self.od, 0x1016, sub, 0);
                     let (id, ms) = ((v >> 16) as u8, v & 0xFFFF);
                     let old = self.consumers[k];
                     let keep = old.node == id && old.active;
@@ -522,16 +569,16 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
                 self.consumers_len = self.consumers.iter().rposition(|c| c.node != 0).map_or(0, |last| last + 1);
             }
             0x1017 => {
-                self.hb_period = Micros::from(read_uint(&self.od, 0x1017, 0).unwrap_or(0)) * 1000;
-                self.hb_next = self.now.saturating_add(self.hb_period);
+                self.hb_period = Micros::from(read_or(&self.od, 0x1017, 0, 0)) * 1000;
+                self.hb_next = later(self.now, self.hb_period);
             }
-            0x100C | 0x100D => {
-                self.guard_time = Micros::from(read_uint(&self.od, 0x100C, 0).unwrap_or(0)) * 1000;
-                self.life_factor = read_uint(&self.od, 0x100D, 0).unwrap_or(0) as u8;
+            0x100C | 0x100D if Self::GUARDING => {
+                self.guard_time = Micros::from(read_or(&self.od, 0x100C, 0, 0)) * 1000;
+                self.life_factor = read_or(&self.od, 0x100D, 0, 0) as u8;
             }
             0x1200 => {
-                let rx = read_uint(&self.od, 0x1200, 1).unwrap_or(0x600 + node);
-                let tx = read_uint(&self.od, 0x1200, 2).unwrap_or(0x580 + node);
+                let rx = read_or(&self.od, 0x1200, 1, 0x600 + node);
+                let tx = read_or(&self.od, 0x1200, 2, 0x580 + node);
                 self.sdo_rx = (rx & 0x7FF) as u16;
                 self.sdo_tx = (tx & 0x7FF) as u16;
                 self.sdo_valid = (rx | tx) & 0x8000_0000 == 0;
@@ -555,8 +602,8 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
         };
         let od = &self.od;
         let cob = read_uint(od, comm, 1);
-        let ttype = read_uint(od, comm, 2).unwrap_or(255) as u8;
-        let count = read_uint(od, map, 0).unwrap_or(0).min(M as u32) as u8;
+        let ttype = read_or(od, comm, 2, 255) as u8;
+        let count = read_or(od, map, 0, 0).min(M as u32) as u8;
         let mut values = [0u32; M];
         let mut ok = true;
         for k in 0..count {
@@ -594,15 +641,15 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
                     map: entries,
                     bytes,
                     pending: None,
-                    timeout: Micros::from(read_uint(od, comm, 5).unwrap_or(0)) * 1000,
+                    timeout: Micros::from(read_or(od, comm, 5, 0)) * 1000,
                     last_rx: None,
                     expired: false,
                 };
             }
             Direction::Transmit => {
-                let inhibit = Micros::from(read_uint(od, comm, 3).unwrap_or(0)) * 100;
-                let event = Micros::from(read_uint(od, comm, 5).unwrap_or(0)) * 1000;
-                let sync_start = read_uint(od, comm, 6).unwrap_or(0) as u8;
+                let inhibit = Micros::from(read_or(od, comm, 3, 0)) * 100;
+                let event = Micros::from(read_or(od, comm, 5, 0)) * 1000;
+                let sync_start = read_or(od, comm, 6, 0) as u8;
                 let mut t = Tpdo {
                     present: cob.is_some(),
                     cob: (c & 0x7FF) as u16,
@@ -626,7 +673,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
                     t.last = old.last;
                     t.sent_once = old.sent_once;
                     t.last_tx = old.last_tx;
-                    t.next_event = old.last_tx.saturating_add(event);
+                    t.next_event = later(old.last_tx, event);
                     t.sync_cnt = old.sync_cnt;
                     t.started = old.started;
                     t.due = old.due;
@@ -673,7 +720,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
             _ => (Direction::Transmit, index - 0x1A00, true),
         };
         let comm = if dir == Direction::Receive { 0x1400 + n } else { 0x1800 + n };
-        let cur = read_uint(&self.od, comm, 1).unwrap_or(0x8000_0000);
+        let cur = read_or(&self.od, comm, 1, 0x8000_0000);
         let valid = cur & 0x8000_0000 == 0;
         if !mapping {
             match sub {
@@ -723,12 +770,15 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
             }
             pdo::check_mapping(dir, &values[..usize::from(count)], pdo_lookup(&self.od))?;
         } else {
-            if read_uint(&self.od, index, 0).unwrap_or(0) != 0 {
+            if read_or(&self.od, index, 0, 0) != 0 {
                 return Err(AbortCode::UNSUPPORTED_ACCESS);
             }
             let v = le_u32(data);
             if data.len() == 4 && v != 0 {
-                pdo::check_entry(dir, v, pdo_lookup(&self.od))?;
+                // `&mut`, as `check_mapping` passes it: one copy of `check_entry` (by value,
+                // a second monomorphisation: 196 B of the DRCS firmware).
+                #[allow(clippy::needless_borrows_for_generic_args)]
+                pdo::check_entry(dir, v, &mut pdo_lookup(&self.od))?;
             }
         }
         Ok(())
@@ -767,6 +817,22 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
         Ok(())
     }
 
+    /// [`Core::write_resolved`] of an entry without side effects ([`has_side_effects`] false).
+    #[inline(always)]
+    fn write_plain(
+        &mut self,
+        index: u16,
+        sub: u8,
+        h: Handle,
+        data: &[u8],
+        source: WriteSource,
+    ) -> Result<(), AbortCode> {
+        self.app.on_write(&self.od, index, sub, data, source)?;
+        self.od.write_handle(h, data)?;
+        self.event(Event::Written { index, sub, source });
+        Ok(())
+    }
+
     /// The rules of the objects with side effects, before a write: `Err` refuses the write,
     /// `Ok(true)` means the write was carried out here in full (store/restore, clearing the
     /// error history), `Ok(false)` that it goes on to the dictionary.
@@ -786,7 +852,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
                 self.event(Event::Written { index, sub, source });
                 return Ok(true);
             }
-            0x1003 if sub == 0 => {
+            0x1003 if sub == 0 && Self::HISTORY => {
                 self.od.info(index, sub)?;
                 if data.len() != 1 {
                     return Err(if data.is_empty() { AbortCode::LENGTH_TOO_LOW } else { AbortCode::LENGTH_TOO_HIGH });
@@ -817,7 +883,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
                 }
             }
             0x1400..=0x1BFF => self.check_pdo_write(index, sub, data)?,
-            0x6040 if self.drive.is_some() && !self.remote => return Err(AbortCode::LOCAL_CONTROL),
+            0x6040 if self.drive().is_some() && !self.remote => return Err(AbortCode::LOCAL_CONTROL),
             _ => {}
         }
         Ok(false)
@@ -826,19 +892,19 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
     fn after_write(&mut self, index: u16, sub: u8, data: &[u8]) {
         match index {
             0x1000..=0x1FFF => self.reload(index),
-            0x6040 if sub == 0 && self.drive.is_some() => {
+            0x6040 if sub == 0 && self.drive().is_some() => {
                 let cw = le_u32(data) as u16;
                 // 605Ah matters only in these two states (transitions 11, 12 and 16).
-                let needs_option = self.drive.is_some_and(|sm| {
+                let needs_option = self.drive().is_some_and(|sm| {
                     matches!(sm.state(), cia402::State::OperationEnabled | cia402::State::QuickStopActive)
                 });
                 let opt = if needs_option { self.quick_stop_option() } else { 2 };
-                if let Some(sm) = &mut self.drive {
+                if let Some(sm) = self.drive_mut() {
                     let ts = sm.controlword(cw, opt);
                     self.drive_transitions(ts);
                 }
             }
-            0x6060 if sub == 0 => {
+            0x6060 if sub == 0 && CIA402 => {
                 let _ = self.od.write(0x6061, 0, data);
             }
             _ => {}
@@ -846,7 +912,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
     }
 
     fn store(&mut self, sub: u8, signature: u32) -> Result<(), AbortCode> {
-        if signature != SAVE_SIGNATURE {
+        if signature != SAVE_SIGNATURE || !STORE {
             return Err(AbortCode::CANNOT_STORE);
         }
         self.storage.begin_transaction()?;
@@ -883,6 +949,10 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
         if signature != LOAD_SIGNATURE {
             return Err(AbortCode::CANNOT_STORE);
         }
+        if !STORE {
+            // Nothing is ever stored: the defaults apply at the next reset as they are.
+            return Ok(());
+        }
         self.storage.begin_transaction()?;
         let erased = storage::areas_of(sub).iter().try_for_each(|&area| self.storage.erase(area));
         let committed = self.storage.end_transaction(erased.is_ok());
@@ -890,6 +960,9 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
     }
 
     fn load_stored(&mut self, area: Area) {
+        if !STORE {
+            return;
+        }
         let Core { od, storage, .. } = self;
         storage.load(area, &mut |index, sub, data| {
             if area.contains(index) {
@@ -952,12 +1025,14 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
         self.guard_reply = false;
         self.guard_last = None;
         self.guard_lost = false;
-        self.consumers = [Consumer::EMPTY; MAX_HEARTBEAT_CONSUMERS];
+        if Self::CONSUMER {
+            self.consumers = [Consumer::EMPTY; MAX_HEARTBEAT_CONSUMERS];
+        }
         self.reload_all();
         self.sdo_reset = true;
         self.bootup = true;
         if kind == ResetKind::Node {
-            let has = self.od.info(0x6040, 0).is_ok() && self.od.info(0x6041, 0).is_ok();
+            let has = CIA402 && self.od.info(0x6040, 0).is_ok() && self.od.info(0x6041, 0).is_ok();
             self.drive = has.then(StateMachine::new);
             // Only a 16-bit 6041h/605Ah is used (as before handles: a read of another length
             // counted as absent).
@@ -970,7 +1045,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
         }
         self.event(Event::Reset(kind));
         if kind == ResetKind::Node
-            && let Some(sm) = &mut self.drive
+            && let Some(sm) = self.drive_mut()
         {
             let ts = sm.initialised();
             self.drive_transitions(ts);
@@ -982,7 +1057,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
     // ---- EMCY -----------------------------------------------------------------------------
 
     fn error_register(&self) -> u8 {
-        read_uint(&self.od, 0x1001, 0).unwrap_or(0) as u8
+        read_or(&self.od, 0x1001, 0, 0) as u8
     }
 
     fn emcy(&mut self, code: u16, register: u8, info: [u8; 5]) {
@@ -1003,7 +1078,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
 
     fn push_history(&mut self, code: u16, info: [u8; 5]) {
         let max = self.history_len;
-        if max == 0 {
+        if max == 0 || !Self::HISTORY {
             return;
         }
         for k in (1..max).rev() {
@@ -1013,11 +1088,14 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
         }
         let v = u32::from(code) | u32::from(info[0]) << 16 | u32::from(info[1]) << 24;
         let _ = self.od.write(0x1003, 1, &v.to_le_bytes());
-        let count = (read_uint(&self.od, 0x1003, 0).unwrap_or(0) as u8).saturating_add(1).min(max);
+        let count = (read_or(&self.od, 0x1003, 0, 0) as u8).saturating_add(1).min(max);
         let _ = self.od.write(0x1003, 0, &[count]);
     }
 
     fn clear_history(&mut self) {
+        if !Self::HISTORY {
+            return;
+        }
         for k in 1..=self.history_len {
             let _ = self.od.write(0x1003, k, &[0; 4]);
         }
@@ -1027,7 +1105,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
     // ---- CiA 402 --------------------------------------------------------------------------
 
     fn quick_stop_option(&self) -> i16 {
-        match self.quick_stop {
+        match if CIA402 { self.quick_stop } else { None } {
             Some(h) => {
                 let b = self.od.read_handle(h);
                 i16::from_le_bytes([b[0], b[1]])
@@ -1036,11 +1114,22 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
         }
     }
 
+    #[cfg_attr(target_os = "none", inline(never))]
+    #[cfg_attr(not(target_os = "none"), inline(always))]
     fn drive_transitions(&mut self, ts: Transitions) {
-        if ts.is_empty() {
-            // Most controlwords repeat the last one: no transition, no statusword change.
-            return;
+        // Most controlwords repeat the last one: no transition, no statusword change, and no
+        // call on the RPDO path.
+        if !ts.is_empty() {
+            self.apply_transitions(ts);
         }
+    }
+
+    /// The effects of the state machine's transitions `ts`: fault reset, events, statusword.
+    /// Out of line on a host (the RPDO path only tests for transitions); a microcontroller has
+    /// one function for both.
+    #[cfg_attr(target_os = "none", inline(always))]
+    #[cfg_attr(not(target_os = "none"), inline(never))]
+    fn apply_transitions(&mut self, ts: Transitions) {
         for t in ts.iter() {
             if t.number == 15 {
                 // Fault reset: clear 603Fh and the error register bits of that fault (all bits
@@ -1058,7 +1147,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
     }
 
     fn update_statusword(&mut self) {
-        let (Some(sm), Some(h)) = (self.drive, self.statusword) else { return };
+        let (Some(sm), Some(h)) = (self.drive(), self.statusword) else { return };
         let b = self.od.read_handle(h);
         let cur = u16::from_le_bytes([b[0], b[1]]);
         let new = (cur & !0x027F) | sm.state().statusword_bits() | if self.remote { 0x0200 } else { 0 };
@@ -1151,6 +1240,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
     /// Writes the entries of RPDO `n` from its data: each one's bits cut out of one 64-bit
     /// word, then written through its handle by [`Core::write_resolved`] (which applies the
     /// rules of the objects with side effects).
+    #[cfg_attr(not(target_os = "none"), inline(always))]
     fn apply_rpdo(&mut self, n: usize, data: [u8; 8]) {
         let word = u64::from_le_bytes(data);
         let count = self.rpdo.get(n).map_or(0, |r| usize::from(r.count));
@@ -1162,7 +1252,15 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
                 let v = low_bits(word >> (offset & 63), bits);
                 let bytes = v.to_le_bytes();
                 let len = (e.bits as usize).div_ceil(8).min(8);
-                let _ = self.write_resolved(e.index, e.sub, Some(e.handle), &bytes[..len], WriteSource::Rpdo(n as u16));
+                let (data, source) = (&bytes[..len], WriteSource::Rpdo(n as u16));
+                // A microcontroller keeps one path (flash); a host writes the plain entries
+                // (most of a PDO) here: the application's veto, the dictionary and the event,
+                // without `write_resolved`'s call.
+                if cfg!(target_os = "none") || has_side_effects(e.index) {
+                    let _ = self.write_resolved(e.index, e.sub, Some(e.handle), data, source);
+                } else {
+                    let _ = self.write_plain(e.index, e.sub, e.handle, data, source);
+                }
             }
             offset += bits;
         }
@@ -1210,9 +1308,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
         let node = u16::from(self.node);
         if self.nmt.emcy_sync_allowed() && self.emcy_valid {
             while !self.emcy_queue.is_empty() {
-                if self.emcy_inhibit != 0
-                    && self.emcy_last.is_some_and(|last| now < last.saturating_add(self.emcy_inhibit))
-                {
+                if self.emcy_inhibit != 0 && self.emcy_last.is_some_and(|last| now < later(last, self.emcy_inhibit)) {
                     break;
                 }
                 if let Some(d) = self.emcy_queue.pop() {
@@ -1224,8 +1320,13 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
                 }
             }
         }
-        if self.sync_producer && self.sync_period != 0 && self.nmt.emcy_sync_allowed() && now >= self.sync_next {
-            self.sync_next = now.saturating_add(self.sync_period);
+        if Self::SYNC
+            && self.sync_producer
+            && self.sync_period != 0
+            && self.nmt.emcy_sync_allowed()
+            && now >= self.sync_next
+        {
+            self.sync_next = later(now, self.sync_period);
             let counter = (self.sync_overflow > 1).then_some(self.sync_counter);
             if let Some(c) = counter {
                 emit(Frame::short(self.sync_cob, [c, 0, 0, 0, 0, 0, 0, 0], 1));
@@ -1243,35 +1344,36 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
                 if r.timeout != 0
                     && !r.expired
                     && let Some(last) = r.last_rx
-                    && now >= last.saturating_add(r.timeout)
+                    && now >= later(last, r.timeout)
                 {
                     r.expired = true;
                     self.event(Event::RpdoTimeout { pdo: n as u16 });
                 }
             }
         }
-        if self.guard_reply {
+        if Self::GUARDING && self.guard_reply {
             self.guard_reply = false;
             let b = self.nmt.code() | if self.guard_toggle { 0x80 } else { 0 };
             self.guard_toggle = !self.guard_toggle;
             emit(Frame::short(0x700 + node, [b, 0, 0, 0, 0, 0, 0, 0], 1));
         }
         if self.hb_period != 0 && now >= self.hb_next {
-            self.hb_next = now.saturating_add(self.hb_period);
+            self.hb_next = later(now, self.hb_period);
             emit(Frame::short(0x700 + node, [self.nmt.code(), 0, 0, 0, 0, 0, 0, 0], 1));
         }
-        for k in 0..self.consumers_len.min(MAX_HEARTBEAT_CONSUMERS) {
+        for k in 0..if Self::CONSUMER { self.consumers_len.min(MAX_HEARTBEAT_CONSUMERS) } else { 0 } {
             let c = self.consumers[k];
-            if c.node != 0 && c.active && now >= c.last.saturating_add(c.time) {
+            if c.node != 0 && c.active && now >= later(c.last, c.time) {
                 self.consumers[k].active = false;
                 self.event(Event::HeartbeatTimeout { node: c.node });
             }
         }
         let life = self.guard_time.saturating_mul(Micros::from(self.life_factor));
-        if life != 0
+        if Self::GUARDING
+            && life != 0
             && !self.guard_lost
             && let Some(last) = self.guard_last
-            && now >= last.saturating_add(life)
+            && now >= later(last, life)
         {
             self.guard_lost = true;
             self.event(Event::LifeGuardingLost);
@@ -1283,7 +1385,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
         let node = u16::from(self.node);
         if frame.is_rtr() {
             if id == 0x700 + node {
-                if self.hb_period == 0 {
+                if Self::GUARDING && self.hb_period == 0 {
                     self.guard_reply = true;
                     self.guard_last = Some(self.now);
                     if self.guard_lost {
@@ -1314,7 +1416,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
             }
             return false;
         }
-        if id == self.sync_cob && self.nmt.emcy_sync_allowed() {
+        if Self::SYNC && id == self.sync_cob && self.nmt.emcy_sync_allowed() {
             self.on_sync(data.first().copied());
             return false;
         }
@@ -1330,7 +1432,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
                 }
             }
         }
-        if (0x701..=0x77F).contains(&id) && !data.is_empty() {
+        if Self::CONSUMER && (0x701..=0x77F).contains(&id) && !data.is_empty() {
             let from = (id - 0x700) as u8;
             let now = self.now;
             for k in 0..self.consumers_len.min(MAX_HEARTBEAT_CONSUMERS) {
@@ -1595,6 +1697,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
         self.apply_sdo_reset();
     }
 
+    #[cfg_attr(target_os = "none", inline(never))]
     fn apply_sdo_reset(&mut self) {
         if self.core.sdo_reset {
             self.core.sdo_reset = false;
@@ -1720,7 +1823,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
 
     /// The CiA 402 state, if the dictionary has 6040h and 6041h.
     pub fn cia402_state(&self) -> Option<cia402::State> {
-        self.core.drive.map(|sm| sm.state())
+        self.core.drive().map(|sm| sm.state())
     }
 
     /// Reports a drive fault: stores `error_code` in 603Fh (when present), signals it as an
@@ -1731,7 +1834,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
             let _ = self.core.od.write(0x603F, 0, &error_code.to_le_bytes());
         }
         self.core.emcy(error_code, emcy::register_bits(error_code), [0; 5]);
-        if let Some(sm) = &mut self.core.drive {
+        if let Some(sm) = self.core.drive_mut() {
             let ts = sm.fault();
             self.core.drive_transitions(ts);
         }
@@ -1745,7 +1848,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
             let _ = self.core.od.write(0x603F, 0, &error_code.to_le_bytes());
         }
         self.core.emcy(error_code, register, info);
-        if let Some(sm) = &mut self.core.drive {
+        if let Some(sm) = self.core.drive_mut() {
             let ts = sm.fault();
             self.core.drive_transitions(ts);
         }
@@ -1756,7 +1859,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
     /// controlword's (603Fh cleared, the fault's 1001h bits cleared, the error reset EMCY).
     /// Nothing in other states.
     pub fn fault_reset(&mut self) {
-        if let Some(sm) = &mut self.core.drive {
+        if let Some(sm) = self.core.drive_mut() {
             let ts = sm.fault_reset();
             self.core.drive_transitions(ts);
         }
@@ -1764,7 +1867,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
 
     /// The fault reaction is complete: Fault reaction active → Fault (transition 14).
     pub fn fault_reaction_done(&mut self) {
-        if let Some(sm) = &mut self.core.drive {
+        if let Some(sm) = self.core.drive_mut() {
             let ts = sm.fault_reaction_done();
             self.core.drive_transitions(ts);
         }
@@ -1774,7 +1877,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
     /// 12) when 605Ah is 0..=4; the drive stays in Quick stop active for 5..=8.
     pub fn quick_stop_done(&mut self) {
         let opt = self.core.quick_stop_option();
-        if let Some(sm) = &mut self.core.drive {
+        if let Some(sm) = self.core.drive_mut() {
             let ts = sm.quick_stop_done(opt);
             self.core.drive_transitions(ts);
         }

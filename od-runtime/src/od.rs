@@ -391,7 +391,8 @@ impl EntryInfo {
 
     /// Size in bits for fixed-size types (1 for BOOLEAN); the capacity in bits for
     /// variable-length types.
-    #[inline]
+    #[cfg_attr(target_os = "none", inline(never))]
+    #[cfg_attr(not(target_os = "none"), inline)]
     pub const fn bits(&self) -> u32 {
         // The row's own byte for a fixed-size value (most entries): no read of the extras and
         // no work on the data type.
@@ -549,6 +550,50 @@ pub(crate) fn pack_mapped(map: &[MappedHandle], mut read: impl FnMut(Handle) -> 
     word
 }
 
+/// The services of CiA 301 whose objects a dictionary may lack, and which a
+/// [`Device`](crate::Device) serves only when it has them: [`ObjectDictionary::SERVICES`].
+///
+/// A generated dictionary sets it from its EDS. It is a constant, so the code of a service
+/// the dictionary has no objects for is not linked into a firmware (the SDO server, NMT, EMCY,
+/// PDOs and the heartbeat producer are always there; the PDOs are sized by the generated
+/// `PDOS` and `MAPPED_PER_PDO`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Services {
+    /// SYNC consumer and producer (1005h; 1006h and 1019h configure them).
+    pub sync: bool,
+    /// Node guarding and life guarding (100Ch and 100Dh).
+    pub node_guarding: bool,
+    /// Heartbeat consumer (1016h).
+    pub heartbeat_consumer: bool,
+    /// EMCY error history (1003h).
+    pub emcy_history: bool,
+}
+
+impl Services {
+    /// Every service (the default of a hand-written dictionary: what it serves is then decided
+    /// by the objects it has, at run time).
+    pub const ALL: Self = Self { sync: true, node_guarding: true, heartbeat_consumer: true, emcy_history: true };
+
+    /// The services whose objects are among `entries` (sorted or not).
+    pub const fn of(entries: &[EntryInfo]) -> Self {
+        let (mut sync, mut guard_time, mut life_factor, mut consumer, mut history) =
+            (false, false, false, false, false);
+        let mut i = 0;
+        while i < entries.len() {
+            match entries[i].index {
+                0x1005 => sync = true,
+                0x100C => guard_time = true,
+                0x100D => life_factor = true,
+                0x1016 => consumer = true,
+                0x1003 => history = true,
+                _ => {}
+            }
+            i += 1;
+        }
+        Self { sync, node_guarding: guard_time && life_factor, heartbeat_consumer: consumer, emcy_history: history }
+    }
+}
+
 /// An object dictionary the runtime can serve.
 ///
 /// Values travel as little-endian bytes, as on the bus. Implementations check lengths and
@@ -562,6 +607,10 @@ pub(crate) fn pack_mapped(map: &[MappedHandle], mut read: impl FnMut(Handle) -> 
 /// can reach an entry faster by a number of its own (a position, an offset) overrides all three
 /// together, consistently.
 pub trait ObjectDictionary {
+    /// The optional services the dictionary has objects for (see [`Services`]); a generated
+    /// dictionary's are its EDS's. Default: [`Services::ALL`].
+    const SERVICES: Services = Services::ALL;
+
     /// Every entry's metadata, sorted by `(index, sub)`.
     fn entries(&self) -> &'static [EntryInfo];
 
@@ -727,24 +776,34 @@ impl EntryInfo {
         if data.len() < len {
             return Err(AbortCode::LENGTH_TOO_LOW);
         }
-        if !self.data_type.is_integer() || len > 16 {
+        if !self.data_type.is_integer() || len > 8 {
             return Ok(());
         }
-        if !self.limited() && self.data_type != DataType::Boolean {
-            return Ok(());
+        // A fixed-size integer of `len` (at most 8) bytes, compared in 64 bits: as unsigned
+        // numbers for the unsigned types (their limits' 64 bits read unsigned), as signed ones
+        // for the signed types. The same order as `low`/`high`'s 128-bit numbers, without
+        // 128-bit arithmetic (half of this function's code on a 32-bit microcontroller).
+        let mut raw = 0u64;
+        for (i, b) in data.iter().take(8).enumerate() {
+            raw |= u64::from(*b) << (8 * i);
         }
-        let value = decode_int(data, self.data_type.is_signed());
-        if self.data_type == DataType::Boolean && value > 1 {
+        if self.data_type == DataType::Boolean && raw > 1 {
             return Err(AbortCode::INVALID_VALUE);
         }
-        if let Some(high) = self.high()
-            && value > high
-        {
+        let Some(&EntryExtras { limits: Some(&Limits { low, high }), .. }) = self.extras else {
+            return Ok(());
+        };
+        let (above, below) = if self.data_type.is_signed() {
+            let shift = (64 - 8 * len as u32) & 63;
+            let v = ((raw << shift) as i64) >> shift;
+            (v > high, v < low)
+        } else {
+            (raw > high as u64, raw < low as u64)
+        };
+        if above {
             return Err(AbortCode::VALUE_TOO_HIGH);
         }
-        if let Some(low) = self.low()
-            && value < low
-        {
+        if below {
             return Err(AbortCode::VALUE_TOO_LOW);
         }
         Ok(())

@@ -98,6 +98,7 @@ pub const fn dummy_bits(index: u16) -> Option<u32> {
 /// - a length over 64 bits is `PDO_LENGTH_EXCEEDED` (0x0604_0042);
 /// - the length must equal the type's size (fixed-size types) or be a whole number of bytes
 ///   within the capacity (strings, DOMAIN), else `PARAMETER_INCOMPATIBLE` (0x0604_0043).
+#[cfg_attr(target_os = "none", inline(never))]
 pub fn check_entry(
     dir: Direction,
     value: u32,

@@ -7,6 +7,7 @@
 //! most one block (127 frames) per call.
 
 use crate::crc::crc16_ccitt;
+use crate::device::SDO_BLOCK;
 use crate::frame::Micros;
 use crate::od::{AbortCode, EntryInfo};
 
@@ -139,6 +140,8 @@ impl<const N: usize> SdoServer<N> {
         self.state = State::Idle;
     }
 
+    /// Queues a response. Out of line on a microcontroller: a dozen callers.
+    #[cfg_attr(target_os = "none", inline(never))]
     fn respond(&mut self, d: [u8; 8]) {
         self.out = Some(d);
     }
@@ -146,7 +149,7 @@ impl<const N: usize> SdoServer<N> {
     /// Handles one request payload (the data of a frame on the server's receive COB-ID).
     pub fn request(&mut self, d: &[u8; 8], now: Micros, acc: &mut impl ObjectAccess) {
         self.last = now;
-        if let State::BlockDownload { .. } = self.state {
+        if SDO_BLOCK && let State::BlockDownload { .. } = self.state {
             if let Err((index, sub, code)) = self.block_download_frame(d, acc) {
                 self.abort(index, sub, code);
             }
@@ -163,8 +166,10 @@ impl<const N: usize> SdoServer<N> {
                 self.state = State::Idle;
                 Ok(())
             }
-            5 => self.block_upload(d, acc),
-            6 => self.initiate_block_download(d, acc),
+            // Block transfers, when built in (cargo feature `sdo-block`); without, their
+            // command specifiers are not valid ones.
+            5 if SDO_BLOCK => self.block_upload(d, acc),
+            6 if SDO_BLOCK => self.initiate_block_download(d, acc),
             _ => {
                 let (i, s) = mux(d);
                 Err((i, s, AbortCode::INVALID_COMMAND))
@@ -530,7 +535,9 @@ impl<const N: usize> SdoServer<N> {
         if let Some(d) = self.out.take() {
             emit(d);
         }
-        if let State::BlockUpload { index, sub, crc, len, acked, blksize, phase: UpPhase::Sending } = self.state {
+        if SDO_BLOCK
+            && let State::BlockUpload { index, sub, crc, len, acked, blksize, phase: UpPhase::Sending } = self.state
+        {
             let mut pos = acked;
             let mut sent = 0u8;
             let mut last = false;

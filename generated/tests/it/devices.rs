@@ -70,9 +70,24 @@ macro_rules! device_tests {
                             None => Err(AbortCode::NO_SUB_INDEX),
                         };
                         assert_eq!(Dictionary::position(index, sub), want, "0x{index:04X} sub {sub}");
+                        // A microcontroller's lookup (no direct table): a binary search.
+                        let sorted = od_runtime::__private_v2::position_sorted(&ENTRIES, index, sub);
+                        assert_eq!(sorted, want, "0x{index:04X} sub {sub}, binary search");
                         assert_eq!(od.info(index, sub).map(|e| (e.index, e.sub)), want.map(|_| (index, sub)));
                     }
                 }
+            }
+
+            #[test]
+            fn the_services_are_those_the_dictionary_has_objects_for() {
+                use od_runtime::od::{ObjectDictionary, Services};
+                let s = <Dictionary as ObjectDictionary>::SERVICES;
+                assert_eq!(s, Services::of(&ENTRIES));
+                let has = |index: u16| ENTRIES.iter().any(|e| e.index == index);
+                assert_eq!(s.sync, has(0x1005));
+                assert_eq!(s.node_guarding, has(0x100C) && has(0x100D));
+                assert_eq!(s.heartbeat_consumer, has(0x1016));
+                assert_eq!(s.emcy_history, has(0x1003));
             }
 
             #[test]

@@ -37,7 +37,7 @@ pub mod tiny {
         entries: &ENTRIES,
     };
     /// Where a host finds each object's run of entries in one read (1 KB per page of
-    /// 256 indices); empty on a microcontroller, which looks entries up in `LOOKUP`.
+    /// 256 indices); empty on a microcontroller, which binary-searches `ENTRIES`.
     static DIRECT: [u32; ::od_runtime::__private_v2::direct_len(1)] = ::od_runtime::__private_v2::direct(
         &ENTRIES,
     );
@@ -127,8 +127,10 @@ pub mod tiny {
             }
         }
         /// Stores a value given as bytes into the entry at `pos` of [`ENTRIES`], after the
-        /// runtime's checks (the shared body of `write` and `write_handle`).
-        #[inline]
+        /// runtime's checks (the shared body of `write` and `write_handle`; one copy of it
+        /// on a microcontroller).
+        #[cfg_attr(target_os = "none", inline(never))]
+        #[cfg_attr(not(target_os = "none"), inline)]
         fn write_at(
             &mut self,
             pos: usize,
@@ -215,6 +217,12 @@ pub mod tiny {
         }
     }
     impl ::od_runtime::od::ObjectDictionary for Dictionary {
+        const SERVICES: ::od_runtime::od::Services = ::od_runtime::od::Services {
+            sync: false,
+            node_guarding: false,
+            heartbeat_consumer: false,
+            emcy_history: false,
+        };
         fn entries(&self) -> &'static [::od_runtime::od::EntryInfo] {
             &ENTRIES
         }

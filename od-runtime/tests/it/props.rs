@@ -178,3 +178,50 @@ fn entry_flags_keep_the_size_and_the_mapping_flag() {
     }
     assert_eq!(EntryFlags::new(200, true).bits(), 0, "a size past 64 bits is none");
 }
+
+/// The limit rule as stated on `EntryInfo::low`/`high`: the value and the limits as 128-bit
+/// numbers (unsigned types read their bits unsigned), BOOLEAN 0 or 1.
+fn limit_rule(e: &od_runtime::od::EntryInfo, data: &[u8]) -> Result<(), od_runtime::od::AbortCode> {
+    use od_runtime::od::{AbortCode, DataType};
+    let v = od_runtime::od::decode_int(data, e.data_type.is_signed());
+    if e.data_type == DataType::Boolean && v > 1 {
+        return Err(AbortCode::INVALID_VALUE);
+    }
+    if e.high().is_some_and(|h| v > h) {
+        return Err(AbortCode::VALUE_TOO_HIGH);
+    }
+    if e.low().is_some_and(|l| v < l) {
+        return Err(AbortCode::VALUE_TOO_LOW);
+    }
+    Ok(())
+}
+
+proptest! {
+    /// `check_value` compares in 64 bits; it must say what the 128-bit rule says, for every
+    /// integer type, any limits and any value of the type's length.
+    #[test]
+    fn limit_checks_agree_with_the_128_bit_rule(
+        t in 0usize..17,
+        low in any::<i64>(),
+        high in any::<i64>(),
+        small in any::<bool>(),
+        bytes in any::<[u8; 8]>(),
+    ) {
+        use od_runtime::od::{Access, DataType as D, DefaultValue, EntryExtras, EntryInfo, Limits};
+        let types = [
+            D::Boolean, D::Unsigned8, D::Unsigned16, D::Unsigned24, D::Unsigned32, D::Unsigned40,
+            D::Unsigned48, D::Unsigned56, D::Unsigned64, D::Integer8, D::Integer16, D::Integer24,
+            D::Integer32, D::Integer40, D::Integer48, D::Integer56, D::Integer64,
+        ];
+        let dt = types[t];
+        // Limits near zero as often as anywhere, so that both outcomes occur.
+        let (low, high) = if small { (low % 300, high % 300) } else { (low, high) };
+        let limits: &'static Limits = Box::leak(Box::new(Limits { low, high }));
+        let extras: &'static EntryExtras =
+            Box::leak(Box::new(EntryExtras { bits: 0, default: DefaultValue::None, limits: Some(limits) }));
+        for e in [EntryInfo::new(0x2000, 0, dt, Access::Rw, false), EntryInfo::new(0x2000, 0, dt, Access::Rw, false).with_extras(extras)] {
+            let data = &bytes[..e.byte_len()];
+            prop_assert_eq!(e.check_value(data), limit_rule(&e, data), "{:?} {:?}", dt, data);
+        }
+    }
+}

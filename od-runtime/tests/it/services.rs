@@ -181,3 +181,58 @@ fn node_guarding_is_off_while_heartbeat_runs() {
     h.sdo_write_ok(0x1017, 0, &[100, 0]);
     assert!(h.send("701 R1").is_empty());
 }
+
+/// The test dictionary declaring every optional service absent ([`ObjectDictionary::SERVICES`]),
+/// though it has their objects: the runtime serves none of them.
+struct Without(TestOd);
+
+impl od_runtime::od::ObjectDictionary for Without {
+    const SERVICES: od_runtime::od::Services =
+        od_runtime::od::Services { sync: false, node_guarding: false, heartbeat_consumer: false, emcy_history: false };
+    fn entries(&self) -> &'static [od_runtime::od::EntryInfo] {
+        self.0.entries()
+    }
+    fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, od_runtime::od::AbortCode> {
+        self.0.read(index, sub, buf)
+    }
+    fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), od_runtime::od::AbortCode> {
+        self.0.write(index, sub, data)
+    }
+    fn restore_defaults(&mut self, area: od_runtime::od::Area, node_id: u8) {
+        self.0.restore_defaults(area, node_id)
+    }
+}
+
+#[derive(Default)]
+struct Log(Vec<Event>);
+
+impl<OD> od_runtime::App<OD> for Log {
+    fn on_event(&mut self, _: &mut OD, e: Event) {
+        self.0.push(e);
+    }
+}
+
+#[test]
+fn services_the_dictionary_declares_absent_are_not_served() {
+    use od_runtime::od::ObjectDictionary;
+    use od_runtime::{Device, NoStorage, NodeId};
+    let mut dev = Device::new(Without(TestOd::new()), Log::default(), NoStorage, NodeId::new(1).unwrap());
+    let mut sent = Vec::new();
+    dev.poll(0, |f| sent.push(f.to_string()));
+    assert_eq!(sent, ["701 00"], "boot-up");
+    dev.write(0x100C, 0, &[100, 0]).unwrap();
+    dev.write(0x100D, 0, &[3]).unwrap();
+    dev.write(0x1016, 1, &[100, 0, 2, 0]).unwrap();
+    dev.app_mut().0.clear();
+    for f in ["080", "080 07", "701 R1", "702 05"] {
+        dev.on_frame(&frame(f), 10);
+    }
+    sent.clear();
+    dev.poll(1_000_000, |f| sent.push(f.to_string()));
+    assert!(sent.is_empty(), "no guarding reply: {sent:?}");
+    assert!(dev.app().0.is_empty(), "no SYNC, heartbeat or guarding event: {:?}", dev.app().0);
+    dev.signal_error(0x1000, 0, [0; 5]);
+    let mut b = [0u8; 4];
+    assert_eq!(dev.od().read(0x1003, 0, &mut b), Ok(1));
+    assert_eq!(b[0], 0, "no error history");
+}

@@ -8,6 +8,9 @@
 use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicU32, Ordering};
 
+#[path = "firmware/mem.rs"]
+mod mem;
+
 use cortex_m_rt::{entry, exception};
 use firmware::Firmware;
 use firmware::bxcan::{BTR_500K_42MHZ, BxCan, CAN1};
@@ -27,10 +30,6 @@ const CYCLES_PER_MS: u32 = 16_000;
 /// its parameter memory).
 #[unsafe(link_section = ".rodata.node_id")]
 static NODE_ID: u8 = 5;
-
-/// The firmware's state, in RAM beside the stack: zeroed at reset like `.bss`, built in place
-/// by `Firmware::init` (no image of it in flash, no copy through the stack).
-static mut FIRMWARE: MaybeUninit<Firmware> = MaybeUninit::uninit();
 
 /// Interrupts of the STM32F405 (reference manual RM0090, table 61).
 const IRQS: usize = 82;
@@ -52,20 +51,32 @@ fn SysTick() {
     MILLIS.fetch_add(1, Ordering::Relaxed);
 }
 
+/// Where the firmware stops when the CAN controller or the node id is unusable: nothing to
+/// serve, so it waits (a board would signal the fault).
+fn halt() -> ! {
+    loop {
+        core::hint::spin_loop();
+    }
+}
+
 #[entry]
 fn main() -> ! {
+    // The firmware's state, in RAM beside the stack: zeroed at reset like `.bss`, built in
+    // place by `Firmware::init` (no image of it in flash, no copy through the stack).
+    // cortex-m-rt hands a `static mut` of the entry function over as a `&'static mut`: `main`
+    // runs once, so it is the only reference.
+    static mut FIRMWARE: MaybeUninit<Firmware> = MaybeUninit::uninit();
     // SAFETY: the SysTick registers belong to this program alone; enable, interrupt, core clock.
     unsafe {
         SYST_RVR.write_volatile(CYCLES_PER_MS - 1);
         SYST_CSR.write_volatile(0b111);
     }
     // SAFETY: CAN1 is used by this driver alone (clock and pins: the board's start-up code).
-    let Ok(mut can) = (unsafe { BxCan::new(CAN1, BTR_500K_42MHZ) }) else { loop {} };
+    let Ok(mut can) = (unsafe { BxCan::new(CAN1, BTR_500K_42MHZ) }) else { halt() };
     // SAFETY: a plain byte of this image; read as the configuration it stands for.
     let node = unsafe { (&raw const NODE_ID).read_volatile() };
-    let Some(node) = NodeId::new(node) else { loop {} };
-    // SAFETY: `main` runs once and is the only user of FIRMWARE; no interrupt touches it.
-    let fw = Firmware::init(unsafe { &mut *(&raw mut FIRMWARE) }, node);
+    let Some(node) = NodeId::new(node) else { halt() };
+    let fw = Firmware::init(FIRMWARE, node);
     loop {
         let now = u64::from(MILLIS.load(Ordering::Relaxed)) * 1000;
         fw.step(&mut can, now);
