@@ -91,9 +91,11 @@ def test_od_master_boots_the_dcfs_odgen_writes(three, wait_until, tmp_path):
     check_booted(boot(bus, *dcfs), nodes, wait_until)
 
 
-def test_the_network_boot_example_boots_the_drives_behind_the_hub(three, wait_until):
+def test_the_network_boot_example_boots_and_moves_the_drives_behind_the_hub(three, wait_until):
     """examples/network-boot (built by `cargo build --workspace --bins`; NETWORK_BOOT points at
-    it otherwise) against the same drive-sim processes."""
+    it otherwise) against the same drive-sim processes: the boot, then each axis homed and moved
+    through its generated client in its units, its position in units checked by the example
+    against 6064h and the scaling objects, and here again from python-canopen's own reads."""
     bus, nodes = three
     out = subprocess.run([binary("NETWORK_BOOT", "network-boot"), "--bus", bus, str(EXAMPLE)], capture_output=True,
                          text=True, timeout=120)
@@ -101,8 +103,23 @@ def test_the_network_boot_example_boots_the_drives_behind_the_hub(three, wait_un
     lines = out.stdout.splitlines()
     assert lines[:3] == ["x_axis (node 2): 29 writes, started", "y_axis (node 3): 28 writes, started",
                          "z_axis (node 4): 28 writes, started"], out.stdout
-    for line in lines[3:]:
+    for line in lines[3:6]:
         name, _, rest = line.partition(": ")
         assert int(rest.split()[0]) >= 5, line  # every 20 ms at least, for 200 ms
+    assert lines[6:] == [
+        "x_axis (node 2): at 90 deg; 6064h = 9000, 2001h = 1/1, 0.01 deg; back at 0",
+        "y_axis (node 3): at 20 mm; 6064h = 20, 2001h = 1/1, mm; back at 0",
+        "z_axis (node 4): at 1 user units; 6064h = 1, 6092h = 1/1, 1 motor turns; back at 0",
+    ], out.stdout
+    # The example's conversions, redone from the EDS objects python-canopen reads: the DRVI in
+    # 0.01 deg (2014h = 0, only motor) and the DRCS in mm, both times 2001h den/num; the AKD in
+    # user units, one per 6092h feed/shaft revolutions of the motor.
+    drvi, drcs, akd = nodes[2], nodes[3], nodes[4]
+    assert drvi.sdo[0x2014].raw == 0
+    for node in (drvi, drcs):
+        assert (node.sdo[0x2001][1].raw, node.sdo[0x2001][2].raw) == (1, 1)
+    assert (akd.sdo[0x6092][1].raw, akd.sdo[0x6092][2].raw) == (1, 1)
     for node_id, node in nodes.items():
         wait_until(lambda n=node: n.nmt.state == "OPERATIONAL", timeout=3, what=f"node {node_id} operational")
+        assert node.sdo[0x6064].raw == 0, f"node {node_id} back at 0"
+        assert node.sdo[0x6060].raw == 1, f"node {node_id} left in profile position mode"

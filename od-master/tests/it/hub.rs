@@ -10,8 +10,11 @@ use std::time::Duration;
 use drive::node::{DeviceKind, MonotonicClock, run};
 use od_bus::tokio::LinkState;
 use od_bus::{Hub, HubConfig};
-use od_master::{Axis, Bus, Config, Event, Homing, Move};
+use od_master::boot::{self, BootOptions, Network};
+use od_master::remote::{Quantity, Unit, dim};
+use od_master::{Axis, Bus, Config, Event, Homing, HomingMethod, Move};
 
+use crate::client::{akd, drcs, drvi};
 use crate::harness::node;
 
 /// A hub with drives running on it.
@@ -76,6 +79,83 @@ async fn over_the_hub_each_drive_homes_and_moves() {
     assert_eq!(a, (0, 3_600, 3_600));
     assert_eq!(b, (0, 100, 100));
     assert_eq!(c, (0, 5_000, 5_000));
+    drop(bus);
+    rig.shutdown();
+}
+
+/// `q` is exactly `num / den` in `unit`.
+fn is(q: &Quantity<dim::Position>, num: i128, den: i128, unit: Unit) -> bool {
+    q.unit() == unit && q.value().num() * den == num * q.value().den()
+}
+
+/// networks/example.toml booted over the hub, then each drive driven through its generated
+/// client in the units its sidecar and the network leave it in: homed, moved in user units, and
+/// its position in deg, mm or user units checked against the raw 6064h and the scaling objects
+/// read separately. All three at once.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn over_the_hub_the_example_network_boots_and_each_drive_moves_through_its_client() {
+    let rig = Rig::start("127.0.0.1:0", &[(DeviceKind::Drvi, 2), (DeviceKind::Drcs, 3), (DeviceKind::Akd, 4)]);
+    let bus = Bus::open(&format!("socketcand://{}/can0", rig.addr()), Config::default()).await.unwrap();
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../networks/example.toml");
+    let network = Network::from_description(&file).unwrap();
+    for r in boot::boot(&bus, &network, &BootOptions::default()).await {
+        assert!(r.result.is_ok() && r.started && r.written == r.planned, "{}: {:?}", r.name, r.result);
+    }
+    let node = |id| bus.node(id).unwrap();
+
+    // DRVI, 2014h = 0 (only motor): 0.01 deg per unit, times 2001h denominator / numerator.
+    let x = async {
+        let drive = drvi::remote::Remote::new(node(2));
+        assert_eq!(drive.actuator_type().read().await.unwrap(), 0);
+        let units = drive.units().await.unwrap();
+        assert_eq!(units.system(), drvi::units::System::OnlyMotor);
+        drive.profile_velocity().write_in(&units, Quantity::rpm(120)).await.unwrap();
+        let axis = Axis::new(drive.node().clone()).with_units(units);
+        let home = axis.home(HomingMethod(37)).await.unwrap_or_else(|e| panic!("{e}"));
+        assert!(is(&home, 0, 1, Unit::Degree), "{}", home.to_f64());
+        let ramps = Move { acceleration: Some(24_000), deceleration: Some(24_000), ..Move::default() };
+        let at = axis.move_to_with(Quantity::deg(45), &ramps).await.unwrap_or_else(|e| panic!("{e}"));
+        let raw = i128::from(drive.node().read::<i32>(0x6064, 0).await.unwrap());
+        let num = i128::from(drive.node().read::<u32>(0x2001, 1).await.unwrap());
+        let den = i128::from(drive.node().read::<u32>(0x2001, 2).await.unwrap());
+        assert!(is(&at, raw * den, 100 * num, Unit::Degree), "{} deg, 6064h = {raw}", at.to_f64());
+        assert!(is(&axis.position().await.unwrap(), 45, 1, Unit::Degree));
+        raw
+    };
+    // DRCS, actuator: mm, times 2001h denominator / numerator.
+    let y = async {
+        let drive = drcs::remote::Remote::new(node(3));
+        let units = drive.units().await.unwrap();
+        assert_eq!(units.system(), drcs::units::System::Actuator);
+        drive.profile_velocity_in_pp_mode().write_in(&units, Quantity::mm_per_s(200)).await.unwrap();
+        let axis = Axis::new(drive.node().clone()).with_units(units);
+        axis.home(HomingMethod(37)).await.unwrap_or_else(|e| panic!("{e}"));
+        let ramps = Move { acceleration: Some(2_000), deceleration: Some(2_000), ..Move::default() };
+        let at = axis.move_to_with(Quantity::mm(15), &ramps).await.unwrap_or_else(|e| panic!("{e}"));
+        let raw = i128::from(drive.node().read::<i32>(0x6064, 0).await.unwrap());
+        let num = i128::from(drive.node().read::<u32>(0x2001, 1).await.unwrap());
+        let den = i128::from(drive.node().read::<u32>(0x2001, 2).await.unwrap());
+        assert!(is(&at, raw * den, num, Unit::Millimeter), "{} mm, 6064h = {raw}", at.to_f64());
+        raw
+    };
+    // AKD: user units, 6092h feed per shaft revolutions of the motor.
+    let z = async {
+        let drive = akd::remote::Remote::new(node(4));
+        let units = drive.units().await.unwrap();
+        drive.profile_velocity().write_in(&units, Quantity::user_per_s(20)).await.unwrap();
+        let axis = Axis::new(drive.node().clone()).with_units(units);
+        axis.home(HomingMethod(35)).await.unwrap_or_else(|e| panic!("{e}"));
+        let ramps = Move { acceleration: Some(200), deceleration: Some(200), ..Move::default() };
+        let at = axis.move_to_with(Quantity::user(1), &ramps).await.unwrap_or_else(|e| panic!("{e}"));
+        let raw = drive.node().read::<i32>(0x6064, 0).await.unwrap();
+        let feed = i128::from(drive.node().read::<u32>(0x6092, 1).await.unwrap());
+        let shaft = i128::from(drive.node().read::<u32>(0x6092, 2).await.unwrap());
+        assert!(is(&at, raw.into(), 1, Unit::UserUnit), "{} user units, 6064h = {raw}", at.to_f64());
+        let turns = units.to_internal(akd::units::Dimension::Position, raw.into()).unwrap();
+        assert_eq!(turns.num() * feed, i128::from(raw) * shaft * turns.den(), "motor turns of 6064h = {raw}");
+        i128::from(raw)
+    };
+    assert_eq!(tokio::join!(x, y, z), (4_500, 15, 1));
     drop(bus);
     rig.shutdown();
 }
