@@ -2630,7 +2630,7 @@ PDOMapping=0
     }
     impl ::od_runtime::od::ObjectDictionary for Dictionary {
         const SERVICES: ::od_runtime::od::Services = ::od_runtime::od::Services {
-            sync: false,
+            sync: true,
             node_guarding: false,
             heartbeat_consumer: false,
             emcy_history: false,

@@ -1023,7 +1023,10 @@ fn inherent_impl(
 /// constant, so the runtime links no code for the others.
 fn services(plan: &Plan<'_>) -> TokenStream {
     let has = |index: u16| plan.entries.iter().any(|e| e.index == index);
-    let (sync, guarding, consumer, history) = (has(0x1005), has(0x100C) && has(0x100D), has(0x1016), has(0x1003));
+    // A PDO may be synchronous without 1005h: SYNC then comes on the predefined COB-ID 80h.
+    let pdos = plan.entries.iter().any(|e| matches!(e.index, 0x1400..=0x15FF | 0x1800..=0x19FF));
+    let (sync, guarding, consumer, history) =
+        (has(0x1005) || pdos, has(0x100C) && has(0x100D), has(0x1016), has(0x1003));
     quote! {
         const SERVICES: ::od_runtime::od::Services = ::od_runtime::od::Services {
             sync: #sync,

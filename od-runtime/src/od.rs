@@ -559,7 +559,9 @@ pub(crate) fn pack_mapped(map: &[MappedHandle], mut read: impl FnMut(Handle) -> 
 /// `PDOS` and `MAPPED_PER_PDO`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Services {
-    /// SYNC consumer and producer (1005h; 1006h and 1019h configure them).
+    /// SYNC consumer and producer (1005h; 1006h and 1019h configure them). Also on without
+    /// 1005h when the dictionary has PDOs: any PDO can be synchronous (transmission types
+    /// 0–240), and SYNC then arrives on the predefined COB-ID 80h.
     pub sync: bool,
     /// Node guarding and life guarding (100Ch and 100Dh).
     pub node_guarding: bool,
@@ -581,7 +583,7 @@ impl Services {
         let mut i = 0;
         while i < entries.len() {
             match entries[i].index {
-                0x1005 => sync = true,
+                0x1005 | 0x1400..=0x15FF | 0x1800..=0x19FF => sync = true,
                 0x100C => guard_time = true,
                 0x100D => life_factor = true,
                 0x1016 => consumer = true,

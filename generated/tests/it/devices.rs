@@ -84,7 +84,8 @@ macro_rules! device_tests {
                 let s = <Dictionary as ObjectDictionary>::SERVICES;
                 assert_eq!(s, Services::of(&ENTRIES));
                 let has = |index: u16| ENTRIES.iter().any(|e| e.index == index);
-                assert_eq!(s.sync, has(0x1005));
+                let pdos = ENTRIES.iter().any(|e| matches!(e.index, 0x1400..=0x15FF | 0x1800..=0x19FF));
+                assert_eq!(s.sync, has(0x1005) || pdos, "SYNC with 1005h, or with PDOs (which may be synchronous)");
                 assert_eq!(s.node_guarding, has(0x100C) && has(0x100D));
                 assert_eq!(s.heartbeat_consumer, has(0x1016));
                 assert_eq!(s.emcy_history, has(0x1003));
