@@ -62,7 +62,7 @@ fn guarding_replies_carry_the_state_and_a_toggling_bit() {
 }
 
 /// Over TCP: the drive-sim binary reports a master that stops guarding with EMCY 8130h
-/// ("life guard error"), answers guarding again, and latches the loss until a fault reset,
+/// ("life guard error"), resets its communication (boot-up), answers guarding again, and latches the loss until a fault reset,
 /// which sends the error reset EMCY. The timing is the virtual-clock test's below: here the
 /// master guards once (which starts life guarding) and waits for the EMCY with a timeout.
 #[test]
@@ -74,6 +74,10 @@ fn a_master_that_stops_guarding_is_reported_by_emcy() {
     assert!(guard(&mut bus).is_some());
     let emcy = next_with_id(&mut bus, 0x082, WAIT).expect("EMCY for the lost master");
     assert_eq!(emcy.data(), [0x30, 0x81, 0x11, 0, 0, 0, 0, 0]);
+    // The loss resets the communication (DRVI 6.3.2.12): its boot-up message follows the EMCY.
+    // A guard request sent before it may be lost in the reset, as on a real bus, so the master
+    // waits for it: that order, not a sleep, is what makes the next request safe.
+    assert_eq!(next_with_id(&mut bus, 0x702, WAIT).map(|f| f.data().to_vec()), Some(vec![0x00]), "boot-up");
     // Guarding resumes and is answered; the DRVI latches the loss as its "fieldbus
     // disconnection" error (Fault) until a fault reset, which sends the error reset EMCY.
     assert!(guard(&mut bus).is_some());
