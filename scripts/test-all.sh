@@ -50,6 +50,14 @@ published=(-p od-sidecar -p od-runtime -p od-bus -p od-master -p canopen-eds -p 
 step "docs of the published crates (warnings denied)"
 RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --all-features --locked "${published[@]}"
 step "cargo package (the published crates, each built from its .crate)"
+# Cargo unpacks those .crate files once per version into its cache (registry/src/-HASH/, one
+# directory per local registry) and never again: after a change to a crate whose version is
+# unchanged, a second run would build the old sources. The unpacked copies of our own crates
+# are removed first; cargo unpacks them again from the new .crate files.
+version=$(sed -n 's/^version = "\(.*\)"$/\1/p' Cargo.toml | head -n 1)
+for crate in "${published[@]}"; do
+  [ "$crate" = -p ] || rm -rf "${CARGO_HOME:-$HOME/.cargo}"/registry/src/-*/"$crate-$version"
+done
 cargo package --locked --allow-dirty "${published[@]}"
 
 # The end-to-end tests run the binaries `cargo test` built for the Rust tests that run them
