@@ -97,6 +97,9 @@ cargo clippy -p od-runtime --no-default-features --features embedded-can --lib -
 # in a pytest of its own whose output is printed when it ends. A file that fails, or collects
 # no tests (pytest's exit code 5), fails the step.
 step "pytest (python-canopen against the simulated drives), four files at a time"
+# The programs the tests run (drive-sim, odgen, od-master, network-boot): `cargo test` links
+# only those its own integration tests use.
+cargo build --workspace --bins --locked
 export DRIVE_SIM="$target/debug/drive-sim"
 export ODGEN="$target/debug/odgen"
 logs=$(mktemp -d)
