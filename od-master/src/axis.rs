@@ -486,14 +486,9 @@ impl Axis {
     /// [`Csp`] is dropped.
     pub async fn cyclic_position(&self, rpdo: u16, cob_id: u16) -> Result<Csp, Error> {
         let k = rpdo.clamp(1, 512) - 1;
-        let (comm, map) = (0x1400 + k, 0x1600 + k);
-        let cob = u32::from(cob_id & 0x7FF);
-        self.set(comm, 1, cob | 0x8000_0000).await?;
-        self.set(map, 0, 0u8).await?;
-        self.set(map, 1, 0x607A_0020u32).await?;
-        self.set(map, 0, 1u8).await?;
-        self.set(comm, 2, 1u8).await?;
-        self.set(comm, 1, cob).await?;
+        // 607Ah, 32 bits, synchronous (transmission type 1).
+        let wrap = |index, sub, e| self.error(index, sub, AxisErrorKind::Sdo(Box::new(e)));
+        crate::remote::remap(&self.node, 0x1400 + k, u32::from(cob_id & 0x7FF), &[0x607A_0020], Some(1), wrap).await?;
         let field =
             PdoField { entry: MapEntry { index: TARGET_POSITION, sub: 0, bits: 32 }, data_type: DataType::Integer32 };
         let mapping =

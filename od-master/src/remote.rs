@@ -714,13 +714,37 @@ pub async fn map_pdo(
     // Bit 30 (no RTR) as the device has it; an 11-bit identifier (bit 29 clear).
     let current: u32 = node.read(comm, 1).await?;
     let cob = (current & 0x4000_0000) | u32::from(cob_id & 0x7FF);
-    node.write_idempotent(comm, 1, cob | 0x8000_0000).await?;
-    node.write_idempotent(map, 0, 0u8).await?;
-    for (i, m) in mapping.iter().enumerate() {
-        node.write_idempotent(map, i as u8 + 1, *m).await?;
+    remap(node, comm, cob, mapping, None, |_, _, e| e).await
+}
+
+/// Writes the remap of the PDO whose communication parameter is `comm` (1400h.. or 1800h..;
+/// its mapping parameter is `comm` + 200h) in the order CiA 301 asks: the COB-ID with bit 31
+/// set (PDO invalid), the mapping's count 0, the entries, the count, then the `transmission`
+/// type if given, and `cob` (valid) last. The one sequence [`map_pdo`] and the axis's cyclic
+/// position share; `wrap` gives a failed write's error the caller's form, with its object.
+pub(crate) async fn remap(
+    node: &Node,
+    comm: u16,
+    cob: u32,
+    mapping: &[u32],
+    transmission: Option<u8>,
+    wrap: impl Fn(u16, u8, Error) -> Error,
+) -> Result<(), Error> {
+    let map = comm + 0x200;
+    let wrap = &wrap;
+    let write_u8 = |index: u16, sub: u8, v: u8| async move {
+        node.write_idempotent(index, sub, v).await.map_err(|e| wrap(index, sub, e))
+    };
+    node.write_idempotent(comm, 1, cob | 0x8000_0000).await.map_err(|e| wrap(comm, 1, e))?;
+    write_u8(map, 0, 0).await?;
+    for (i, m) in (1u8..).zip(mapping) {
+        node.write_idempotent(map, i, *m).await.map_err(|e| wrap(map, i, e))?;
     }
-    node.write_idempotent(map, 0, mapping.len() as u8).await?;
-    node.write_idempotent(comm, 1, cob).await
+    write_u8(map, 0, mapping.len() as u8).await?;
+    if let Some(t) = transmission {
+        write_u8(comm, 2, t).await?;
+    }
+    node.write_idempotent(comm, 1, cob).await.map_err(|e| wrap(comm, 1, e))
 }
 
 /// An RPDO of a remote node: the master sends it.
