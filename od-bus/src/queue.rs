@@ -34,6 +34,10 @@ struct State<T> {
     /// Consumers blocked in `wait`: a push wakes someone only when there is someone to wake,
     /// which saves a futex system call per frame on the common path.
     waiters: usize,
+    /// The consumer of [`BoundedQueue::drain_blocking`] took items and has not come back for
+    /// more: it is still handing them on, so nothing may overtake them
+    /// ([`BoundedQueue::push_or_hand`]).
+    working: bool,
 }
 
 /// Bounded multi-producer FIFO with blocking, timed receive.
@@ -48,7 +52,12 @@ impl<T> BoundedQueue<T> {
     pub(crate) fn new(capacity: usize) -> Self {
         let capacity = capacity.max(1);
         Self {
-            state: Mutex::new(State { items: VecDeque::with_capacity(capacity.min(1024)), closed: false, waiters: 0 }),
+            state: Mutex::new(State {
+                items: VecDeque::with_capacity(capacity.min(1024)),
+                closed: false,
+                waiters: 0,
+                working: false,
+            }),
             ready: Condvar::new(),
             capacity,
         }
@@ -69,6 +78,36 @@ impl<T> BoundedQueue<T> {
         if state.items.len() >= limit {
             return Err(PushError::Full);
         }
+        state.items.push_back(item);
+        let wake = state.waiters > 0;
+        drop(state);
+        if wake {
+            self.ready.notify_one();
+        }
+        Ok(())
+    }
+
+    /// Hands `item` to `direct` instead of queueing it when nothing is queued and the consumer
+    /// holds no items it took earlier, so that nothing is overtaken; otherwise queues it like
+    /// [`push`](BoundedQueue::push). `direct` runs under the queue's lock (other producers wait
+    /// for it, so it must not block) and returns what it could not take, which is queued, first
+    /// in line. For a queue drained with [`drain_blocking`](BoundedQueue::drain_blocking) only,
+    /// which tracks whether its consumer is working.
+    pub(crate) fn push_or_hand(&self, item: T, direct: impl FnOnce(T) -> Option<T>) -> Result<(), PushError> {
+        let mut state = lock(&self.state);
+        if state.closed {
+            return Err(PushError::Closed);
+        }
+        let item = if state.items.is_empty() && !state.working {
+            match direct(item) {
+                None => return Ok(()),
+                Some(rest) => rest,
+            }
+        } else if state.items.len() >= self.capacity {
+            return Err(PushError::Full);
+        } else {
+            item
+        };
         state.items.push_back(item);
         let wake = state.waiters > 0;
         drop(state);
@@ -130,7 +169,8 @@ impl<T> BoundedQueue<T> {
 
     /// Waits until at least one item is queued, then moves up to `max` items into `out`.
     /// Returns `Err(Closed)` as soon as the queue is closed, dropping what is left: the consumer
-    /// (a TCP writer) is going away.
+    /// (a TCP writer) is going away. The consumer counts as working on what it took until it
+    /// calls again (see [`push_or_hand`](BoundedQueue::push_or_hand)).
     pub(crate) fn drain_blocking(&self, out: &mut Vec<T>, max: usize) -> Result<(), Closed> {
         let mut state = lock(&self.state);
         loop {
@@ -141,8 +181,10 @@ impl<T> BoundedQueue<T> {
             if !state.items.is_empty() {
                 let take = state.items.len().min(max.max(1));
                 out.extend(state.items.drain(..take));
+                state.working = true;
                 return Ok(());
             }
+            state.working = false;
             state.waiters += 1;
             state = self.ready.wait(state).unwrap_or_else(PoisonError::into_inner);
             state.waiters -= 1;
@@ -184,6 +226,58 @@ mod tests {
         assert_eq!(queue.push(4), Err(PushError::Closed));
         assert_eq!(queue.pop_timeout(Duration::ZERO), Ok(Some(2)), "items queued before close are kept");
         assert_eq!(queue.pop_timeout(Duration::ZERO), Err(Closed));
+    }
+
+    /// Items are handed over directly only when that overtakes nothing: not while items are
+    /// queued, nor while the consumer still holds items it took; what the direct taker leaves
+    /// goes first in line.
+    #[test]
+    fn push_or_hand_never_lets_an_item_overtake_another() {
+        let queue = BoundedQueue::new(2);
+        let mut direct = Vec::new();
+        let mut out = Vec::new();
+        // Idle and empty: handed over.
+        queue
+            .push_or_hand(1, |i| {
+                direct.push(i);
+                None
+            })
+            .unwrap();
+        // The taker leaves it: queued.
+        queue.push_or_hand(2, Some).unwrap();
+        // Something queued: queued behind it, the taker not asked.
+        queue.push_or_hand(3, |_| unreachable!()).unwrap();
+        assert_eq!(queue.push_or_hand(4, |_| unreachable!()), Err(PushError::Full));
+        queue.drain_blocking(&mut out, 10).unwrap();
+        assert_eq!(out, [2, 3]);
+        // The consumer is working on 2 and 3: queued, though the queue is empty.
+        queue.push_or_hand(5, |_| unreachable!()).unwrap();
+        out.clear();
+        queue.drain_blocking(&mut out, 10).unwrap();
+        assert_eq!(out, [5]);
+        // The consumer comes back for more and finds nothing: idle again.
+        let waiting = Arc::new(queue);
+        let consumer = {
+            let queue = Arc::clone(&waiting);
+            std::thread::spawn(move || {
+                let mut out = Vec::new();
+                queue.drain_blocking(&mut out, 10).map(|()| out)
+            })
+        };
+        while lock(&waiting.state).waiters == 0 {
+            std::thread::yield_now();
+        }
+        waiting
+            .push_or_hand(6, |i| {
+                direct.push(i);
+                None
+            })
+            .unwrap();
+        assert_eq!(direct, [1, 6]);
+        waiting.push_or_hand(7, Some).unwrap();
+        assert_eq!(consumer.join().unwrap(), Ok(vec![7]));
+        waiting.close();
+        assert_eq!(waiting.push_or_hand(8, |_| unreachable!()), Err(PushError::Closed));
     }
 
     #[test]

@@ -424,6 +424,32 @@ fn a_client_that_stops_reading_loses_frames_counted_not_its_connection() {
     assert!(healthy.join().unwrap(), "the healthy client stayed connected to the end");
 }
 
+/// Frames reach a TCP client whole and in order across the two ways the hub writes them: at once
+/// from the relaying thread while the client's socket takes them, and through its writer thread
+/// once the socket is full (with the rest of a frame the socket took only part of going first).
+/// The client reads nothing until far more than its socket buffers hold has been sent.
+#[test]
+fn frames_stay_whole_and_in_order_when_the_socket_fills_while_writing_directly() {
+    const FRAMES: u32 = 300_000; // about 12 MB of text: more than loopback socket buffers take
+    let config = HubConfig { client_queue: FRAMES as usize, ..HubConfig::default() };
+    let (hub, events) = recording_hub(config);
+    let mut reader = SocketcandClient::connect(hub.local_addr(), "can0").unwrap();
+    let mut sender = hub.attach("can0").unwrap();
+    for n in 0..FRAMES {
+        let id = 0x100 + n % 0x600; // lengths and identifiers vary, so do the texts
+        let bytes = n.to_le_bytes();
+        sender.send(CanFrame::standard(id, &bytes[..1 + (n % 4) as usize]).unwrap()).unwrap();
+    }
+    for n in 0..FRAMES {
+        let frame = reader.recv_timeout(WAIT).unwrap().unwrap_or_else(|| panic!("frame {n} never came"));
+        let bytes = n.to_le_bytes();
+        assert_eq!(frame, CanFrame::standard(0x100 + n % 0x600, &bytes[..1 + (n % 4) as usize]).unwrap(), "frame {n}");
+    }
+    assert_eq!(reader.remote_errors(), 0, "{:?}", reader.last_remote_error());
+    assert_eq!(reader.lost(), 0);
+    assert!(!events.lock().unwrap().iter().any(|e| matches!(e, HubEvent::FramesDropped { .. })));
+}
+
 #[test]
 fn connections_beyond_the_limit_are_refused_when_every_client_sends() {
     let config = HubConfig { max_clients: 2, ..HubConfig::default() };
