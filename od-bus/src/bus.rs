@@ -258,6 +258,10 @@ impl Endpoint for LocalEndpoint {
         self.inbox.queue.pop_timeout(timeout).map_err(|_| TransportError::Closed)
     }
 
+    fn buffered(&self) -> usize {
+        self.pending()
+    }
+
     fn lost(&self) -> u64 {
         self.dropped()
     }

@@ -278,6 +278,18 @@ impl Endpoint for SocketcandClient {
         self.write(&Message::Send(frame))
     }
 
+    fn send_all(&mut self, frames: &[CanFrame]) -> Result<(), TransportError> {
+        self.out.clear();
+        for frame in frames {
+            Message::Send(*frame).write_to(&mut self.out);
+        }
+        self.stream.write_all(self.out.as_bytes()).map_err(|e| map_io("cannot write to the server", e))
+    }
+
+    fn buffered(&self) -> usize {
+        self.frames.len()
+    }
+
     fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<CanFrame>, TransportError> {
         let deadline =
             Instant::now().checked_add(timeout).unwrap_or_else(|| Instant::now() + Duration::from_secs(86_400));

@@ -24,6 +24,22 @@ pub trait Endpoint: Send {
         self.recv_timeout(Duration::ZERO)
     }
 
+    /// Puts several frames on the bus, in order. A socket endpoint writes them with one system
+    /// call, so a device answering several requests at once wakes its peer once.
+    fn send_all(&mut self, frames: &[CanFrame]) -> Result<(), TransportError> {
+        frames.iter().try_for_each(|frame| self.send(*frame))
+    }
+
+    /// Frames this endpoint has already received and holds, which [`try_recv`] hands out
+    /// without asking the OS: a loop can take every request that came in one read before it
+    /// answers any. 0 where the transport holds none itself (there may still be frames to
+    /// read).
+    ///
+    /// [`try_recv`]: Endpoint::try_recv
+    fn buffered(&self) -> usize {
+        0
+    }
+
     /// Frames lost on the way to this endpoint so far: its receive queue overflowed, or the
     /// hub dropped them because this endpoint read more slowly than the bus ran. 0 where the
     /// transport cannot tell.
@@ -45,6 +61,14 @@ impl<E: Endpoint + ?Sized> Endpoint for Box<E> {
         (**self).try_recv()
     }
 
+    fn send_all(&mut self, frames: &[CanFrame]) -> Result<(), TransportError> {
+        (**self).send_all(frames)
+    }
+
+    fn buffered(&self) -> usize {
+        (**self).buffered()
+    }
+
     fn lost(&self) -> u64 {
         (**self).lost()
     }
@@ -61,6 +85,14 @@ impl<E: Endpoint + ?Sized> Endpoint for &mut E {
 
     fn try_recv(&mut self) -> Result<Option<CanFrame>, TransportError> {
         (**self).try_recv()
+    }
+
+    fn send_all(&mut self, frames: &[CanFrame]) -> Result<(), TransportError> {
+        (**self).send_all(frames)
+    }
+
+    fn buffered(&self) -> usize {
+        (**self).buffered()
     }
 
     fn lost(&self) -> u64 {

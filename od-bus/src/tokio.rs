@@ -239,6 +239,21 @@ impl BusSender {
         }
     }
 
+    /// Puts several frames on the bus, in order, as [`send`](BusSender::send) would one by one;
+    /// a socketcand link writes them with one system call, so a master with answers for
+    /// several nodes at once wakes the hub once. Stops at the first frame that fails.
+    pub async fn send_all(&self, frames: &[CanFrame]) -> Result<(), TransportError> {
+        match &self.inner {
+            Tx::Socketcand { shared, .. } if frames.len() > 1 => shared.send_all(frames).await,
+            _ => {
+                for frame in frames {
+                    self.send(*frame).await?;
+                }
+                Ok(())
+            }
+        }
+    }
+
     /// The link's state (see [`Bus::link`]).
     pub fn link(&self) -> watch::Receiver<LinkState> {
         self.link.clone()
@@ -246,6 +261,23 @@ impl BusSender {
 }
 
 impl BusReceiver {
+    /// The next frame if one has already arrived, without waiting: `Ok(None)` when none is
+    /// there now (on SocketCAN always: only [`recv`](BusReceiver::recv) reads the socket),
+    /// [`TransportError::Closed`] once the bus is gone and every frame was handed out. Lets a
+    /// task take everything that came in one read before it answers any of it.
+    pub fn try_recv(&mut self) -> Result<Option<CanFrame>, TransportError> {
+        match &mut self.inner {
+            Rx::Memory(member) => member.inbox.queue.pop_timeout(Duration::ZERO).map_err(|_| TransportError::Closed),
+            Rx::Socketcand { frames, .. } => match frames.try_recv() {
+                Ok(frame) => Ok(Some(frame)),
+                Err(mpsc::error::TryRecvError::Empty) => Ok(None),
+                Err(mpsc::error::TryRecvError::Disconnected) => Err(TransportError::Closed),
+            },
+            #[cfg(all(feature = "socketcan", target_os = "linux"))]
+            Rx::SocketCan(..) => Ok(None),
+        }
+    }
+
     /// The next frame sent by another member, in bus order. Waits as long as it takes, through
     /// reconnections of a socketcand link; cancel it (drop the future, `tokio::time::timeout`)
     /// to wait less: no frame is lost by cancelling. [`TransportError::Closed`] once the bus
@@ -395,8 +427,14 @@ struct StopGuard {
 
 impl TcpShared {
     async fn send(&self, frame: CanFrame) -> Result<(), TransportError> {
-        let mut text = String::with_capacity(48);
-        Message::Send(frame).write_to(&mut text);
+        self.send_all(&[frame]).await
+    }
+
+    async fn send_all(&self, frames: &[CanFrame]) -> Result<(), TransportError> {
+        let mut text = String::with_capacity(48 * frames.len());
+        for frame in frames {
+            Message::Send(*frame).write_to(&mut text);
+        }
         let mut writer = self.writer.lock().await;
         let Some((stream, number)) = writer.as_mut() else { return Err(self.not_up()) };
         match stream.write_all(text.as_bytes()).await {

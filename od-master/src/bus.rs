@@ -470,6 +470,10 @@ fn clock_thread(shared: &(Mutex<ClockState>, Condvar), wake: &tokio::sync::Notif
     }
 }
 
+/// Frames and commands taken at most in one turn of the bus task before it sends what they
+/// made (a flood of frames must not hold back the SDO timeouts and SYNCs of [`Task::poll`]).
+const MAX_TAKEN: usize = 64;
+
 /// Whether a failed transfer may be started again: the answer got lost or garbled on the way
 /// (timeout, toggle bit, sequence, CRC, command specifier: the 0503xxxxh and 0504xxxxh codes,
 /// from either side), not refused by the server for what it is, nor too large for the buffer.
@@ -498,11 +502,17 @@ impl Task {
             tokio::select! {
                 () = notified(precise) => {}
                 command = self.commands.recv() => match command {
-                    Some(command) => self.command(command),
+                    Some(command) => {
+                        self.command(command);
+                        self.take_waiting();
+                    }
                     None => return,
                 },
                 frame = self.rx.recv() => match frame {
-                    Ok(frame) => self.frame(frame),
+                    Ok(frame) => {
+                        self.frame(frame);
+                        self.take_waiting();
+                    }
                     Err(_) => {
                         self.close();
                         return;
@@ -517,6 +527,26 @@ impl Task {
                     Err(_) => self.link_open = false,
                 },
                 () = sleep_until(wake) => {}
+            }
+        }
+    }
+
+    /// Takes the frames and commands that are already waiting (answers of several nodes that
+    /// came in one read, calls of several tasks), so that what they make the machines send goes
+    /// out together, in one write. What is closed or empty is left to the `select!` to find.
+    fn take_waiting(&mut self) {
+        for _ in 0..MAX_TAKEN {
+            let mut took = false;
+            if let Ok(Some(frame)) = self.rx.try_recv() {
+                self.frame(frame);
+                took = true;
+            }
+            if let Ok(command) = self.commands.try_recv() {
+                self.command(command);
+                took = true;
+            }
+            if !took {
+                return;
             }
         }
     }
@@ -586,8 +616,9 @@ impl Task {
     /// went). A machine's frame that cannot be sent (a socketcand link that is down) is lost
     /// like a frame lost on the wire: the SDO timeout and retries deal with it.
     async fn flush(&mut self) {
-        for frame in std::mem::take(&mut self.out) {
-            let _ = self.tx.send(CanFrame::from(frame)).await;
+        let frames: Vec<CanFrame> = self.out.drain(..).map(CanFrame::from).collect();
+        if !frames.is_empty() {
+            let _ = self.tx.send_all(&frames).await;
         }
         for (frame, reply) in std::mem::take(&mut self.sends) {
             let _ = reply.send(self.tx.send(frame).await.map_err(Error::from));

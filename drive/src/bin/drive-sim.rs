@@ -17,9 +17,12 @@
 //! (`drive::motion::Machine`); without it the DRVI is a bare motor turning freely, the DRCS the
 //! belt axis of its EDS defaults, the AKD an axis with limit and reference switches
 //! (`drive::drives::machine`). With `--listen` it starts a hub there, puts the devices on its channel
-//! (`--channel`, default `can0`) and prints `listening on ADDRESS`; with `--bus` every device
-//! joins that bus (one connection each) and it prints `running on BUS`. Each device runs on its
-//! own thread (`drive::node::run`, 1 ms timer resolution).
+//! (`--channel`, default `can0`) and prints `listening on ADDRESS`; with `--bus` the devices
+//! join that bus and it prints `running on BUS`. The devices of one `run` share one connection
+//! and one thread (`drive::node::run_group`, 1 ms timer resolution): each sees every frame on
+//! the bus and every frame the others send, as on one CAN bus, and a frame wakes one thread
+//! rather than one per device. Devices that must fail or restart alone run as separate
+//! processes.
 //!
 //! With `--trace`/`--plot`, `run` records each device's demand and actual values and writes them
 //! when it stops (one device: the files as named; several: `-<device>-node<id>` before the
@@ -30,8 +33,8 @@
 //! an absolute move in physical units with real frames (`drive::drives::demo`), printing what
 //! happened.
 //!
-//! A device on `--bus` survives the bus: when its connection fails it keeps its state and runs
-//! on, and reconnects with backoff. The hub limits (`hub`, `run --listen`) are described in
+//! Devices on `--bus` survive the bus: when their connection fails they keep their state and run
+//! on, and reconnect with backoff. The hub limits (`hub`, `run --listen`) are described in
 //! `od_bus::HubConfig`: a full hub makes room by closing the longest-idle client that
 //! never sent a frame, a flooding client is slowed down, a slow reader loses frames (logged)
 //! rather than its connection, and `--bitrate` emulates the wire. `dump` reports frames the hub
@@ -412,24 +415,22 @@ fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
     // Before any thread starts, so every thread inherits the blocked signal set.
     let termination = Termination::block().map_err(|e| format!("cannot set up signal handling: {e}"))?;
     let mut hub = None;
-    let mut endpoints: Vec<Box<dyn Endpoint>> = Vec::new();
-    let ready = if let Some(listen) = &args.listen {
+    // The devices share one connection (one endpoint) and one thread, as the devices of one
+    // process: a frame on the bus wakes one thread, and the hub writes it once.
+    let names: Vec<String> = nodes.iter().map(|(name, _)| name.clone()).collect();
+    let group = names.join(", ");
+    let (endpoint, ready): (Box<dyn Endpoint>, String) = if let Some(listen) = &args.listen {
         let mut config = args.limits.apply(HubConfig::default());
         if args.quiet {
             config = quiet_hub(config);
         }
         let h = Hub::bind(listen.as_str(), config).map_err(|e| format!("hub on {listen}: {e}"))?;
-        for _ in &nodes {
-            endpoints.push(Box::new(h.attach(&args.channel).map_err(|e| format!("channel {}: {e}", args.channel))?));
-        }
+        let endpoint = Box::new(h.attach(&args.channel).map_err(|e| format!("channel {}: {e}", args.channel))?);
         let line = format!("listening on {}", h.local_addr());
         hub = Some(h);
-        line
+        (endpoint, line)
     } else if let Some(bus) = &args.bus {
-        for (name, _) in &nodes {
-            endpoints.push(bus.open().map_err(|e| format!("{name}: {bus}: {e}"))?);
-        }
-        format!("running on {bus}")
+        (bus.open().map_err(|e| format!("{group}: {bus}: {e}"))?, format!("running on {bus}"))
     } else {
         return Err("give --listen ADDRESS or --bus BUS".into());
     };
@@ -437,17 +438,22 @@ fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
     let stop = Arc::new(AtomicBool::new(false));
     let failed = Arc::new(AtomicBool::new(false));
     let clock = MonotonicClock::new();
-    let mut threads = Vec::new();
     let backoff = Backoff { first: Duration::from_millis(args.reconnect_ms.max(1)), ..Backoff::default() };
-    for ((name, mut node), mut endpoint) in nodes.into_iter().zip(endpoints) {
+    for name in &names {
+        eprintln!("drive-sim: {name} started");
+    }
+    let mut nodes: Vec<Box<dyn AnyNode>> = nodes.into_iter().map(|(_, node)| node).collect();
+    let thread = {
         let (stop, failed) = (Arc::clone(&stop), Arc::clone(&failed));
         let reconnect = args.bus.clone();
-        eprintln!("drive-sim: {name} started");
-        let thread = std::thread::Builder::new()
-            .name(name.clone())
+        let mut endpoint = endpoint;
+        std::thread::Builder::new()
+            .name("devices".into())
             .spawn(move || {
+                let mut group: Vec<&mut dyn AnyNode> = nodes.iter_mut().map(|n| &mut **n as &mut dyn AnyNode).collect();
+                let name = names.join(", ");
                 if let Some(bus) = reconnect {
-                    // A bus of its own: lost connections are opened again, the node runs on.
+                    // A bus of their own: lost connections are opened again, the nodes run on.
                     let mut open = || bus.open();
                     let mut report = |event: BusEvent<'_>| match event {
                         BusEvent::Lost(e) => eprintln!("drive-sim: {name}: {bus}: {e}; reconnecting"),
@@ -459,23 +465,31 @@ fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
                         }
                         _ => {}
                     };
-                    drive::node::run_reconnecting(&mut *node, endpoint, &mut open, &clock, &stop, backoff, &mut report);
-                    return node;
-                }
-                match drive::node::run(&mut *node, &mut *endpoint, &clock, &stop) {
-                    Ok(_) => {}
-                    Err(TransportError::Closed) if stop.load(Ordering::SeqCst) => {}
-                    Err(e) => {
-                        eprintln!("drive-sim: {name}: {e}");
-                        failed.store(true, Ordering::SeqCst);
-                        Termination::trigger();
+                    drive::node::run_group_reconnecting(
+                        &mut group,
+                        endpoint,
+                        &mut open,
+                        &clock,
+                        &stop,
+                        backoff,
+                        &mut report,
+                    );
+                } else {
+                    match drive::node::run_group(&mut group, &mut *endpoint, &clock, &stop) {
+                        Ok(_) => {}
+                        Err(TransportError::Closed) if stop.load(Ordering::SeqCst) => {}
+                        Err(e) => {
+                            eprintln!("drive-sim: {name}: {e}");
+                            failed.store(true, Ordering::SeqCst);
+                            Termination::trigger();
+                        }
                     }
                 }
-                node
+                drop(group);
+                nodes
             })
-            .map_err(|e| format!("cannot start a device thread: {e}"))?;
-        threads.push(thread);
-    }
+            .map_err(|e| format!("cannot start the devices' thread: {e}"))?
+    };
     let mut stdout = std::io::stdout().lock();
     // Ignored if nobody reads stdout: the line is a convenience for scripts.
     let _ = writeln!(stdout, "{ready}").and_then(|()| stdout.flush());
@@ -486,12 +500,10 @@ fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
         eprintln!("drive-sim: {signal}, stopping");
     }
     stop.store(true, Ordering::SeqCst);
-    let mut stopped = Vec::new();
-    for (thread, kind) in threads.into_iter().zip(kinds) {
-        if let Ok(node) = thread.join() {
-            stopped.push((kind, node));
-        }
-    }
+    let stopped: Vec<(DeviceKind, Box<dyn AnyNode>)> = match thread.join() {
+        Ok(nodes) => kinds.into_iter().zip(nodes).collect(),
+        Err(_) => Vec::new(),
+    };
     if let Some(hub) = hub {
         hub.stop();
     }

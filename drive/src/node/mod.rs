@@ -83,7 +83,9 @@ pub use app::{Ctx, DefaultApp, DriveApp, EMCY_HEARTBEAT_OR_GUARDING, EMCY_RPDO_T
 pub use devices::{Apps, DefaultApps, DeviceKind, NodeConfig, NodeSetupError};
 pub use params::{DcfError, NodeStorage, ParameterSet};
 pub use retain::{FileRetain, MemoryRetain, Retain};
-pub use run::{Backoff, BusEvent, Clock, MonotonicClock, RunStats, run, run_reconnecting};
+pub use run::{
+    Backoff, BusEvent, Clock, MonotonicClock, RunStats, run, run_group, run_group_reconnecting, run_reconnecting,
+};
 pub use sim::Sim;
 pub use virtual_bus::{ADVANCE_STEP, STEP, Seen, VirtualBus};
 

@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 use od_runtime::Micros;
 
 use super::AnyNode;
-use od_bus::{Endpoint, TransportError};
+use od_bus::{CanFrame, Endpoint, TransportError};
 
 /// A source of the current time in microseconds.
 pub trait Clock {
@@ -67,38 +67,92 @@ pub fn run(
     clock: &dyn Clock,
     stop: &AtomicBool,
 ) -> Result<RunStats, TransportError> {
+    run_group(&mut [node], bus, clock, stop)
+}
+
+/// Runs several nodes on one bus endpoint from one thread, as the devices of one process on
+/// one connection: every frame from the bus goes to each node, and every frame a node sends
+/// goes on the bus and to the other nodes (a bus does not give a sender its own frames back,
+/// and here the sender is the whole group). Frames that came in one read are all handed over
+/// before the nodes answer, and the answers go out in one write.
+///
+/// Compared with a thread and a connection per device, a frame on the bus wakes one thread
+/// instead of one per device, and the hub writes it once instead of once per device.
+pub fn run_group(
+    nodes: &mut [&mut dyn AnyNode],
+    bus: &mut dyn Endpoint,
+    clock: &dyn Clock,
+    stop: &AtomicBool,
+) -> Result<RunStats, TransportError> {
     let mut stats = RunStats::default();
-    run_counting(node, bus, clock, stop, &mut stats).map(|()| stats)
+    run_counting(nodes, bus, clock, stop, &mut stats).map(|()| stats)
 }
 
 fn run_counting(
-    node: &mut dyn AnyNode,
+    nodes: &mut [&mut dyn AnyNode],
     bus: &mut dyn Endpoint,
     clock: &dyn Clock,
     stop: &AtomicBool,
     stats: &mut RunStats,
 ) -> Result<(), TransportError> {
-    let mut out = Vec::with_capacity(16);
+    // Frames sent by the group's nodes this round, with the sender's place in `nodes`.
+    let mut out: Vec<(usize, CanFrame)> = Vec::with_capacity(16);
+    let mut frames: Vec<CanFrame> = Vec::with_capacity(16);
     loop {
         if stop.load(Ordering::Relaxed) {
             return Ok(());
         }
         let now = clock.now();
-        let deadline = node.next_deadline();
+        let deadline = nodes.iter().map(|n| n.next_deadline()).min().unwrap_or(now);
         if now < deadline {
             let wait = Duration::from_micros(deadline - now).min(MAX_WAIT);
-            if let Some(frame) = bus.recv_timeout(wait)? {
+            let Some(frame) = bus.recv_timeout(wait)? else { continue };
+            hand_over(nodes, None, &frame, clock.now());
+            stats.received += 1;
+            // What came with it in the same read is handled before anyone answers.
+            while bus.buffered() > 0 {
+                let Some(frame) = bus.try_recv()? else { break };
+                hand_over(nodes, None, &frame, clock.now());
                 stats.received += 1;
-                node.handle(&frame, clock.now());
-            } else {
-                continue;
             }
         }
-        node.poll(clock.now(), &mut |f| out.push(f));
-        stats.polls += 1;
-        for frame in out.drain(..) {
-            bus.send(frame)?;
-            stats.sent += 1;
+        // Polled until quiet: a node's frame reaches the other nodes at once (they may answer
+        // it: an SDO request or NMT command from one device to another).
+        for round in 0.. {
+            let start = out.len();
+            let now = clock.now();
+            for (i, node) in nodes.iter_mut().enumerate() {
+                node.poll(now, &mut |frame| out.push((i, frame)));
+            }
+            stats.polls += 1;
+            if nodes.len() == 1 || out.len() == start || round == MAX_LOCAL_ROUNDS {
+                break;
+            }
+            for &(from, frame) in &out[start..] {
+                hand_over(nodes, Some(from), &frame, now);
+            }
+        }
+        frames.clear();
+        frames.extend(out.drain(..).map(|(_, frame)| frame));
+        match frames.as_slice() {
+            [] => {}
+            [frame] => bus.send(*frame)?,
+            all => bus.send_all(all)?,
+        }
+        stats.sent += frames.len() as u64;
+    }
+}
+
+/// Rounds of local delivery in one turn of the loop; beyond this, what the nodes still say to
+/// each other waits for the next turn (two nodes that answered each other forever would
+/// otherwise starve the bus).
+const MAX_LOCAL_ROUNDS: usize = 8;
+
+/// Gives `frame` to every node of the group but its sender.
+fn hand_over(nodes: &mut [&mut dyn AnyNode], from: Option<usize>, frame: &CanFrame, now: Micros) {
+    for (i, node) in nodes.iter_mut().enumerate() {
+        if Some(i) != from {
+            node.handle(frame, now);
         }
     }
 }
@@ -146,6 +200,19 @@ pub enum BusEvent<'a> {
 /// up to `backoff.max`, until it gives a bus. Returns when `stop` is set.
 pub fn run_reconnecting(
     node: &mut dyn AnyNode,
+    bus: Box<dyn Endpoint>,
+    open: &mut dyn FnMut() -> Result<Box<dyn Endpoint>, TransportError>,
+    clock: &dyn Clock,
+    stop: &AtomicBool,
+    backoff: Backoff,
+    report: &mut dyn FnMut(BusEvent<'_>),
+) -> RunStats {
+    run_group_reconnecting(&mut [node], bus, open, clock, stop, backoff, report)
+}
+
+/// [`run_reconnecting`] for a group of nodes on one connection, as [`run_group`] runs them.
+pub fn run_group_reconnecting(
+    nodes: &mut [&mut dyn AnyNode],
     mut bus: Box<dyn Endpoint>,
     open: &mut dyn FnMut() -> Result<Box<dyn Endpoint>, TransportError>,
     clock: &dyn Clock,
@@ -156,7 +223,7 @@ pub fn run_reconnecting(
     let mut total = RunStats::default();
     loop {
         let mut stats = RunStats::default();
-        let result = run_counting(node, &mut *bus, clock, stop, &mut stats);
+        let result = run_counting(nodes, &mut *bus, clock, stop, &mut stats);
         total.received += stats.received;
         total.sent += stats.sent;
         total.polls += stats.polls;
@@ -169,7 +236,7 @@ pub fn run_reconnecting(
         let mut wait = backoff.first;
         let mut attempts = 0u32;
         bus = loop {
-            if !idle(node, clock, stop, wait) {
+            if !idle(nodes, clock, stop, wait) {
                 return total;
             }
             attempts = attempts.saturating_add(1);
@@ -187,9 +254,9 @@ pub fn run_reconnecting(
     }
 }
 
-/// Keeps `node` running without a bus for `time` (its frames are discarded). Returns false if
-/// `stop` was set meanwhile.
-fn idle(node: &mut dyn AnyNode, clock: &dyn Clock, stop: &AtomicBool, time: Duration) -> bool {
+/// Keeps the nodes running without a bus for `time` (their frames are discarded: the group is
+/// cut off together). Returns false if `stop` was set meanwhile.
+fn idle(nodes: &mut [&mut dyn AnyNode], clock: &dyn Clock, stop: &AtomicBool, time: Duration) -> bool {
     let until = Instant::now() + time;
     loop {
         if stop.load(Ordering::Relaxed) {
@@ -199,8 +266,11 @@ fn idle(node: &mut dyn AnyNode, clock: &dyn Clock, stop: &AtomicBool, time: Dura
         if now >= until {
             return true;
         }
-        node.poll(clock.now(), &mut |_| {});
-        let next = Duration::from_micros(node.next_deadline().saturating_sub(clock.now()));
-        std::thread::sleep(next.min(MAX_WAIT).min(until - now).max(Duration::from_micros(200)));
+        let mut next = MAX_WAIT;
+        for node in nodes.iter_mut() {
+            node.poll(clock.now(), &mut |_| {});
+            next = next.min(Duration::from_micros(node.next_deadline().saturating_sub(clock.now())));
+        }
+        std::thread::sleep(next.min(until - now).max(Duration::from_micros(200)));
     }
 }

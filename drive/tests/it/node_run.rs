@@ -161,3 +161,65 @@ fn a_node_whose_bus_fails_keeps_its_state_and_comes_back_when_the_bus_opens_agai
     assert!(stats.sent >= 4, "{stats:?}");
     assert_eq!(*events.lock().unwrap(), ["lost", "retry in 20ms", "back after 2"]);
 }
+
+/// Devices run as a group on one endpoint (`drive-sim run` with several devices): each
+/// answers its own requests, requests that come together are all answered, and a frame one
+/// device sends reaches the others in the group, which the bus itself never gives back to the
+/// endpoint that sent it. Here the AKD (node 2) consumes the DRVI's (node 1) heartbeat, which
+/// it can only hear inside the group; when the DRVI falls silent, the AKD reports 8130h.
+#[test]
+fn a_group_on_one_endpoint_answers_each_node_and_its_devices_hear_each_other() {
+    use drive::node::{AnyNode, run_group};
+    let bus = MemoryBus::new();
+    let mut master = bus.endpoint();
+    let mut device = bus.endpoint();
+    let build =
+        |kind: DeviceKind, id| kind.build(&NodeConfig { node_id: Some(id), ..NodeConfig::default() }, &DefaultApps);
+    let mut nodes = [build(DeviceKind::Drvi, 1).unwrap(), build(DeviceKind::Akd, 2).unwrap()];
+    let stop = Arc::new(AtomicBool::new(false));
+    let thread = {
+        let stop = Arc::clone(&stop);
+        std::thread::spawn(move || {
+            let mut group: Vec<&mut dyn AnyNode> = nodes.iter_mut().map(|n| &mut **n as &mut dyn AnyNode).collect();
+            run_group(&mut group, &mut device, &MonotonicClock::new(), &stop)
+        })
+    };
+    next_with_id(&mut master, 0x701);
+    next_with_id(&mut master, 0x702);
+    let sdo = |master: &mut LocalEndpoint, node: u32, data: [u8; 8]| {
+        master.send(CanFrame::standard(0x600 + node, &data).unwrap()).unwrap();
+        next_with_id(master, 0x580 + node).1
+    };
+
+    // Two requests at once, two answers, each from its node (1000h: device types differ).
+    master.send(CanFrame::standard(0x601, &[0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0]).unwrap()).unwrap();
+    master.send(CanFrame::standard(0x602, &[0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0]).unwrap()).unwrap();
+    let mut answers = Vec::new();
+    while answers.len() < 2 {
+        let frame = master.recv_timeout(WAIT).unwrap().expect("both nodes answer");
+        if frame.id() & !0x7F == 0x580 {
+            answers.push(frame.id());
+        }
+    }
+    answers.sort();
+    assert_eq!(answers, [0x581, 0x582]);
+
+    // The AKD watches node 1's heartbeat (100 ms); the DRVI beats every 20 ms.
+    assert_eq!(sdo(&mut master, 2, [0x23, 0x16, 0x10, 0x01, 100, 0, 1, 0]).data()[0], 0x60);
+    assert_eq!(sdo(&mut master, 1, [0x2B, 0x17, 0x10, 0x00, 20, 0, 0, 0]).data()[0], 0x60);
+    next_with_id(&mut master, 0x701);
+    next_with_id(&mut master, 0x701);
+    // While the beats come, the AKD reports nothing.
+    let quiet_until = Instant::now() + Duration::from_millis(300);
+    while let Some(frame) = master.recv_timeout(quiet_until.saturating_duration_since(Instant::now())).unwrap() {
+        assert_ne!(frame.id(), 0x082, "EMCY while node 1's heartbeat came: {frame:?}");
+    }
+    // The DRVI stops beating: the AKD, which heard it only inside the group, notices.
+    assert_eq!(sdo(&mut master, 1, [0x2B, 0x17, 0x10, 0x00, 0, 0, 0, 0]).data()[0], 0x60);
+    let emcy = next_with_id(&mut master, 0x082).1;
+    assert_eq!(emcy.data()[..2], [0x30, 0x81], "{emcy:?}");
+
+    stop.store(true, Ordering::SeqCst);
+    let stats = thread.join().unwrap().unwrap();
+    assert_eq!(stats.received, 5, "the five requests, nothing else: {stats:?}");
+}

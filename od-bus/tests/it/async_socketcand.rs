@@ -183,3 +183,47 @@ async fn dropping_both_halves_ends_the_connection() {
         tokio::time::sleep(Duration::from_millis(5)).await;
     }
 }
+
+/// `send_all` puts frames on the bus in order (one write on a socketcand link); `try_recv` hands
+/// out what has arrived without waiting and `None` when nothing has. The same on a memory bus.
+#[tokio::test]
+async fn send_all_keeps_order_and_try_recv_takes_only_what_has_arrived() {
+    let hub = hub_on("127.0.0.1:0");
+    let mut device = hub.attach("can0").unwrap();
+    let text = format!("socketcand://{}/can0", hub.local_addr());
+    let (tx, mut rx) = Bus::open(&text).await.unwrap().split();
+    let frames: Vec<CanFrame> = (0..40u8).map(|n| frame(0x600 + u32::from(n % 4), &[n, 0x10])).collect();
+    tx.send_all(&frames).await.unwrap();
+    tx.send_all(&[]).await.unwrap();
+    for sent in &frames {
+        assert_eq!(recv_blocking(&mut device).await, *sent);
+    }
+    assert_eq!(rx.try_recv().unwrap(), None);
+    device.send_all(&frames).unwrap();
+    let mut got = Vec::new();
+    let deadline = tokio::time::Instant::now() + WAIT;
+    while got.len() < frames.len() {
+        match rx.try_recv().unwrap() {
+            Some(frame) => got.push(frame),
+            None => {
+                assert!(tokio::time::Instant::now() < deadline, "{} of {} frames", got.len(), frames.len());
+                tokio::time::sleep(Duration::from_millis(1)).await;
+            }
+        }
+    }
+    assert_eq!(got, frames);
+    assert_eq!(rx.try_recv().unwrap(), None);
+
+    let memory = od_bus::MemoryBus::new();
+    let mut other = memory.endpoint();
+    let (tx, mut rx) = Bus::attach(&memory).split();
+    tx.send_all(&frames[..3]).await.unwrap();
+    assert_eq!(
+        [other.try_recv().unwrap(), other.try_recv().unwrap(), other.try_recv().unwrap()],
+        [Some(frames[0]), Some(frames[1]), Some(frames[2])]
+    );
+    assert_eq!(rx.try_recv().unwrap(), None);
+    other.send(frames[3]).unwrap();
+    assert_eq!(rx.try_recv().unwrap(), Some(frames[3]));
+    assert_eq!(rx.try_recv().unwrap(), None);
+}

@@ -781,3 +781,25 @@ fn an_attached_endpoint_that_does_not_read_loses_frames_counted_and_logged_spars
     assert_eq!(logged, [1, 2, 4, 8, 16]);
     assert_eq!(hub.client_count(), 1, "the TCP client is unaffected");
 }
+
+/// `send_all` puts several frames on the bus with one write, in order; what one read brought in
+/// is counted by `buffered` and handed out by `try_recv` without another read.
+#[test]
+fn a_client_sends_several_frames_in_one_write_and_counts_what_it_holds() {
+    let hub = quiet_hub();
+    let mut a = SocketcandClient::connect(hub.local_addr(), "can0").unwrap();
+    let mut b = SocketcandClient::connect(hub.local_addr(), "can0").unwrap();
+    let frames: Vec<CanFrame> =
+        (0..50u8).map(|n| CanFrame::standard(0x580 + u32::from(n % 3), &[n]).unwrap()).collect();
+    a.send_all(&frames).unwrap();
+    a.send_all(&[]).unwrap();
+    let mut got = Vec::new();
+    while got.len() < frames.len() {
+        got.push(b.recv_timeout(WAIT).unwrap().expect("every frame arrives"));
+        for _ in 0..b.buffered() {
+            got.push(b.try_recv().unwrap().expect("a frame it said it held"));
+        }
+    }
+    assert_eq!(got, frames);
+    assert_eq!(b.buffered(), 0);
+}
