@@ -13,7 +13,9 @@
 #    to node 1 (scripts/bench_master_canopen.py, python-can's socketcand interface), and
 #    od-master to nodes 1, 2 and 3 at once, in alternating rounds so that a drift of the
 #    machine's speed weighs on all alike. Also the floor of the path: the same reads by a plain
-#    blocking socketcand client (no master; `bench raw`). Each master's own time per read is its
+#    blocking socketcand client (no master; `bench raw`). od-master runs on tokio's multi-thread
+#    runtime (two workers, what `#[tokio::main]` gives here) and again on a current-thread one
+#    (`BENCH_RUNTIME=current`), which saves the wake-ups between workers. Each master's own time per read is its
 #    time per read less the plain client's: what the master adds to the path.
 # 2. A fresh hub with three AKDs (nodes 11, 12, 13; of the three drives only the AKD does cyclic
 #    synchronous position): SYNC every 1 ms and a set-point per SYNC per drive for CSP_SECONDS,
@@ -76,6 +78,8 @@ for r in $(seq "$rounds"); do
   runs+=("$("$bench" reads --bus "$bus" --nodes 1 --seconds "$reads_s" | sed 's/"bench":"reads"/"bench":"od-master 1 node"/')")
   runs+=("$("$python" "$root/scripts/bench_master_canopen.py" "$addr" 1 "$reads_s")")
   runs+=("$("$bench" reads --bus "$bus" --nodes 1,2,3 --seconds "$reads_s" | sed 's/"bench":"reads"/"bench":"od-master 3 nodes"/')")
+  runs+=("$(BENCH_RUNTIME=current "$bench" reads --bus "$bus" --nodes 1 --seconds "$reads_s" | sed 's/"bench":"reads"/"bench":"od-master 1 node, current-thread"/')")
+  runs+=("$(BENCH_RUNTIME=current "$bench" reads --bus "$bus" --nodes 1,2,3 --seconds "$reads_s" | sed 's/"bench":"reads"/"bench":"od-master 3 nodes, current-thread"/')")
   runs+=("$("$bench" raw --bus "$bus" --nodes 1 --seconds "$reads_s")")
 done
 
@@ -99,12 +103,17 @@ ours, ours_each = rate("od-master 1 node")
 theirs, theirs_each = rate("python-canopen reads")
 three, three_each = rate("od-master 3 nodes")
 raw, raw_each = rate("raw reads")
+ours_ct, ours_ct_each = rate("od-master 1 node, current-thread")
+three_ct, three_ct_each = rate("od-master 3 nodes, current-thread")
 print(f"\nexpedited SDO reads/s over the hub ({cores} cores), totals over the rounds (each round):")
 print(f"  od-master, 1 node        {ours:8.0f}  {ours_each}")
 print(f"  python-canopen, 1 node   {theirs:8.0f}  {theirs_each}")
 print(f"  od-master, 3 nodes       {three:8.0f}  {three_each}")
 print(f"  plain blocking client    {raw:8.0f}  {raw_each}  (the hub and drive path, no master)")
-print(f"  od-master / python-canopen: {ours / theirs:.2f}x   3 nodes / 1 node: {three / ours:.2f}x")
+print(f"  od-master, 1 node, current-thread runtime  {ours_ct:8.0f}  {ours_ct_each}")
+print(f"  od-master, 3 nodes, current-thread runtime {three_ct:8.0f}  {three_ct_each}")
+print(f"  od-master / python-canopen: {ours / theirs:.2f}x (current-thread {ours_ct / theirs:.2f}x)   "
+      f"3 nodes / 1 node: {three / ours:.2f}x (current-thread {three_ct / ours_ct:.2f}x)")
 floor = 1e6 / raw
 own_ours, own_theirs = 1e6 / ours - floor, 1e6 / theirs - floor
 print(f"  time per read: path (plain client) {floor:.1f} us; beyond it od-master {own_ours:.1f} us, "
