@@ -7,7 +7,7 @@ python-canopen master reading and writing over SDO the whole time.
 
 It starts `drive-sim hub` (with --bitrate, an emulated wire of that rate), one `drive-sim run`
 process with the drives (node ids 1..N, DRVI, DRCS and AKD in turn, each its own connection with
---bus), connects the master, sets every heartbeat producer (1017h) to --heartbeat-ms, starts the
+--bus, `--connection-per-device`; with --shared-connection one for all), connects the master, sets every heartbeat producer (1017h) to --heartbeat-ms, starts the
 nodes (NMT start, so their default TPDOs run), starts SYNC and then reads 6041h and writes and
 reads back 6083h on every node in turn until the time is up. It reports:
 
@@ -75,6 +75,9 @@ def main():
     parser.add_argument("--sync-ms", type=float, default=1.0)
     parser.add_argument("--heartbeat-ms", type=int, default=100)
     parser.add_argument("--bitrate", type=int, default=1_000_000, help="0: no wire emulation")
+    parser.add_argument("--shared-connection", action="store_true",
+                        help="the drives on one connection and thread (drive-sim run's default); "
+                             "without it each has its own, as separate CAN controllers the wire arbitrates")
     args = parser.parse_args()
 
     import logging
@@ -93,6 +96,8 @@ def main():
     hub, address, hub_log = start(binary, hub_args, "listening on ")
     host, port = address.rsplit(":", 1)
     run_args = ["run", "--bus", f"tcp://{address}/can0", "--quiet"]
+    if not args.shared_connection:
+        run_args.append("--connection-per-device")
     nodes = list(range(1, args.drives + 1))
     for node_id in nodes:
         run_args += ["--device", KINDS[(node_id - 1) % 3], "--node-id", str(node_id)]

@@ -21,8 +21,8 @@
 //! join that bus and it prints `running on BUS`. The devices of one `run` share one connection
 //! and one thread (`drive::node::run_group`, 1 ms timer resolution): each sees every frame on
 //! the bus and every frame the others send, as on one CAN bus, and a frame wakes one thread
-//! rather than one per device. Devices that must fail or restart alone run as separate
-//! processes.
+//! rather than one per device. `--connection-per-device` gives each its own connection and
+//! thread, as separate CAN controllers (an emulated wire then arbitrates between them too).
 //!
 //! With `--trace`/`--plot`, `run` records each device's demand and actual values and writes them
 //! when it stops (one device: the files as named; several: `-<device>-node<id>` before the
@@ -195,6 +195,12 @@ struct RunArgs {
     /// device keeps its state and runs on meanwhile), doubling up to 5 s between attempts.
     #[arg(long, default_value_t = 100)]
     reconnect_ms: u64,
+    /// Give each device its own connection and thread, as separate CAN controllers: an emulated
+    /// wire (--bitrate) then arbitrates between the devices' frames too, and each reconnects
+    /// alone. By default the devices share one connection and thread: a frame wakes one
+    /// thread, not one per device.
+    #[arg(long)]
+    connection_per_device: bool,
     /// Record every device's motion and write it as CSV here when stopped.
     #[arg(long)]
     trace: Option<PathBuf>,
@@ -414,23 +420,37 @@ fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
     }
     // Before any thread starts, so every thread inherits the blocked signal set.
     let termination = Termination::block().map_err(|e| format!("cannot set up signal handling: {e}"))?;
+    // By default the devices share one connection (one endpoint) and one thread, as the
+    // devices of one process: a frame on the bus wakes one thread, and the hub writes it once.
+    let mut groups: Vec<Vec<(String, Box<dyn AnyNode>)>> = Vec::new();
+    for node in nodes {
+        match groups.last_mut() {
+            Some(group) if !args.connection_per_device => group.push(node),
+            _ => groups.push(vec![node]),
+        }
+    }
+    let group_name = |group: &[(String, Box<dyn AnyNode>)]| -> String {
+        group.iter().map(|(name, _)| name.as_str()).collect::<Vec<_>>().join(", ")
+    };
     let mut hub = None;
-    // The devices share one connection (one endpoint) and one thread, as the devices of one
-    // process: a frame on the bus wakes one thread, and the hub writes it once.
-    let names: Vec<String> = nodes.iter().map(|(name, _)| name.clone()).collect();
-    let group = names.join(", ");
-    let (endpoint, ready): (Box<dyn Endpoint>, String) = if let Some(listen) = &args.listen {
+    let mut endpoints: Vec<Box<dyn Endpoint>> = Vec::new();
+    let ready = if let Some(listen) = &args.listen {
         let mut config = args.limits.apply(HubConfig::default());
         if args.quiet {
             config = quiet_hub(config);
         }
         let h = Hub::bind(listen.as_str(), config).map_err(|e| format!("hub on {listen}: {e}"))?;
-        let endpoint = Box::new(h.attach(&args.channel).map_err(|e| format!("channel {}: {e}", args.channel))?);
+        for _ in &groups {
+            endpoints.push(Box::new(h.attach(&args.channel).map_err(|e| format!("channel {}: {e}", args.channel))?));
+        }
         let line = format!("listening on {}", h.local_addr());
         hub = Some(h);
-        (endpoint, line)
+        line
     } else if let Some(bus) = &args.bus {
-        (bus.open().map_err(|e| format!("{group}: {bus}: {e}"))?, format!("running on {bus}"))
+        for group in &groups {
+            endpoints.push(bus.open().map_err(|e| format!("{}: {bus}: {e}", group_name(group)))?);
+        }
+        format!("running on {bus}")
     } else {
         return Err("give --listen ADDRESS or --bus BUS".into());
     };
@@ -439,19 +459,20 @@ fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
     let failed = Arc::new(AtomicBool::new(false));
     let clock = MonotonicClock::new();
     let backoff = Backoff { first: Duration::from_millis(args.reconnect_ms.max(1)), ..Backoff::default() };
-    for name in &names {
-        eprintln!("drive-sim: {name} started");
-    }
-    let mut nodes: Vec<Box<dyn AnyNode>> = nodes.into_iter().map(|(_, node)| node).collect();
-    let thread = {
+    let mut threads = Vec::new();
+    for (group, mut endpoint) in groups.into_iter().zip(endpoints) {
+        let name = group_name(&group);
+        for (device, _) in &group {
+            eprintln!("drive-sim: {device} started");
+        }
+        let size = group.len();
+        let mut nodes: Vec<Box<dyn AnyNode>> = group.into_iter().map(|(_, node)| node).collect();
         let (stop, failed) = (Arc::clone(&stop), Arc::clone(&failed));
         let reconnect = args.bus.clone();
-        let mut endpoint = endpoint;
-        std::thread::Builder::new()
-            .name("devices".into())
+        let thread = std::thread::Builder::new()
+            .name(name.clone())
             .spawn(move || {
                 let mut group: Vec<&mut dyn AnyNode> = nodes.iter_mut().map(|n| &mut **n as &mut dyn AnyNode).collect();
-                let name = names.join(", ");
                 if let Some(bus) = reconnect {
                     // A bus of their own: lost connections are opened again, the nodes run on.
                     let mut open = || bus.open();
@@ -488,8 +509,9 @@ fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
                 drop(group);
                 nodes
             })
-            .map_err(|e| format!("cannot start the devices' thread: {e}"))?
-    };
+            .map_err(|e| format!("cannot start a device thread: {e}"))?;
+        threads.push((thread, size));
+    }
     let mut stdout = std::io::stdout().lock();
     // Ignored if nobody reads stdout: the line is a convenience for scripts.
     let _ = writeln!(stdout, "{ready}").and_then(|()| stdout.flush());
@@ -500,10 +522,16 @@ fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
         eprintln!("drive-sim: {signal}, stopping");
     }
     stop.store(true, Ordering::SeqCst);
-    let stopped: Vec<(DeviceKind, Box<dyn AnyNode>)> = match thread.join() {
-        Ok(nodes) => kinds.into_iter().zip(nodes).collect(),
-        Err(_) => Vec::new(),
-    };
+    let mut stopped: Vec<(DeviceKind, Box<dyn AnyNode>)> = Vec::new();
+    let mut kinds = kinds.into_iter();
+    for (thread, size) in threads {
+        match thread.join() {
+            Ok(nodes) => stopped.extend(kinds.by_ref().zip(nodes)),
+            // A panicked thread's devices are gone (no trace of them); the others' kinds still
+            // line up.
+            Err(_) => kinds.by_ref().take(size).for_each(drop),
+        }
+    }
     if let Some(hub) = hub {
         hub.stop();
     }

@@ -103,7 +103,8 @@ fn run_counting(
             return Ok(());
         }
         let now = clock.now();
-        let deadline = nodes.iter().map(|n| n.next_deadline()).min().unwrap_or(now);
+        // (No nodes: nothing is due, frames are still taken off the bus.)
+        let deadline = nodes.iter().map(|n| n.next_deadline()).min().unwrap_or(Micros::MAX);
         if now < deadline {
             let wait = Duration::from_micros(deadline - now).min(MAX_WAIT);
             let Some(frame) = bus.recv_timeout(wait)? else { continue };

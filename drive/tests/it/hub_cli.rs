@@ -213,3 +213,50 @@ fn hub_and_run_help_document_the_limits_and_the_bitrate() {
         assert!(help.contains("[default: 1024]") && help.contains("longest"), "{help}");
     }
 }
+
+/// `drive-sim run --bus` with several devices joins the bus once for all of them by default,
+/// and once per device with `--connection-per-device`; either way each device answers its own
+/// SDO requests, also when they come at once.
+#[test]
+fn run_joins_once_for_its_devices_or_once_each_when_asked() {
+    for (per_device, connections) in [(false, 1), (true, 3)] {
+        let hub = od_bus::Hub::bind("127.0.0.1:0", od_bus::HubConfig::default().quiet()).unwrap();
+        let bus = format!("socketcand://{}/can0", hub.local_addr());
+        let mut args = vec!["run", "--bus", &bus, "--device", "drvi", "--node-id", "1"];
+        args.extend(["--device", "drcs", "--node-id", "2", "--device", "akd", "--node-id", "3"]);
+        if per_device {
+            args.push("--connection-per-device");
+        }
+        let mut child = Command::new(env!("CARGO_BIN_EXE_drive-sim"))
+            .args(&args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("start drive-sim");
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+        assert_eq!(line.trim(), format!("running on {bus}"));
+        let mut master = hub.attach("can0").unwrap();
+        let deadline = Instant::now() + WAIT;
+        while hub.client_count() < connections {
+            assert!(Instant::now() < deadline, "{} connections", hub.client_count());
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        for id in 1..=3u32 {
+            master.send(CanFrame::standard(0x600 + id, &[0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0]).unwrap()).unwrap();
+        }
+        let mut answered = Vec::new();
+        while answered.len() < 3 {
+            let frame = master.recv_timeout(WAIT).unwrap().expect("every drive answers");
+            if frame.id() & !0x7F == 0x580 {
+                assert_eq!(frame.data()[0], 0x43, "{frame:?}");
+                answered.push(frame.id());
+            }
+        }
+        answered.sort();
+        assert_eq!(answered, [0x581, 0x582, 0x583]);
+        assert_eq!(hub.client_count(), connections, "--connection-per-device {per_device}");
+        let _ = child.kill();
+        let _ = child.wait();
+    }
+}
