@@ -98,6 +98,8 @@ fn run_counting(
     // Frames sent by the group's nodes this round, with the sender's place in `nodes`.
     let mut out: Vec<(usize, CanFrame)> = Vec::with_capacity(16);
     let mut frames: Vec<CanFrame> = Vec::with_capacity(16);
+    // The nodes were handed frames of each other's they have not been polled after.
+    let mut owed_poll = false;
     loop {
         if stop.load(Ordering::Relaxed) {
             return Ok(());
@@ -105,7 +107,15 @@ fn run_counting(
         let now = clock.now();
         // (No nodes: nothing is due, frames are still taken off the bus.)
         let deadline = nodes.iter().map(|n| n.next_deadline()).min().unwrap_or(Micros::MAX);
-        if now < deadline {
+        if owed_poll {
+            // No waiting, but what the bus has is taken: nodes busy with each other must not
+            // shut the bus out.
+            for _ in 0..MAX_LOCAL_ROUNDS {
+                let Some(frame) = bus.try_recv()? else { break };
+                hand_over(nodes, None, &frame, clock.now());
+                stats.received += 1;
+            }
+        } else if now < deadline {
             let wait = Duration::from_micros(deadline - now).min(MAX_WAIT);
             let Some(frame) = bus.recv_timeout(wait)? else { continue };
             hand_over(nodes, None, &frame, clock.now());
@@ -119,6 +129,7 @@ fn run_counting(
         }
         // Polled until quiet: a node's frame reaches the other nodes at once (they may answer
         // it: an SDO request or NMT command from one device to another).
+        owed_poll = false;
         for round in 0.. {
             let start = out.len();
             let now = clock.now();
@@ -126,11 +137,16 @@ fn run_counting(
                 node.poll(now, &mut |frame| out.push((i, frame)));
             }
             stats.polls += 1;
-            if nodes.len() == 1 || out.len() == start || round == MAX_LOCAL_ROUNDS {
+            if nodes.len() == 1 || out.len() == start {
                 break;
             }
             for &(from, frame) in &out[start..] {
                 hand_over(nodes, Some(from), &frame, now);
+            }
+            if round == MAX_LOCAL_ROUNDS {
+                // What they answer comes at the next turn, which does not wait.
+                owed_poll = true;
+                break;
             }
         }
         frames.clear();
@@ -144,9 +160,9 @@ fn run_counting(
     }
 }
 
-/// Rounds of local delivery in one turn of the loop; beyond this, what the nodes still say to
-/// each other waits for the next turn (two nodes that answered each other forever would
-/// otherwise starve the bus).
+/// Rounds of local delivery in one turn of the loop; beyond this, the nodes' answers to what
+/// they were last handed come at the next turn, after what is due on the bus has gone out (two
+/// nodes that answered each other forever would otherwise starve the bus).
 const MAX_LOCAL_ROUNDS: usize = 8;
 
 /// Gives `frame` to every node of the group but its sender.

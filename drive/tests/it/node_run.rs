@@ -223,3 +223,92 @@ fn a_group_on_one_endpoint_answers_each_node_and_its_devices_hear_each_other() {
     let stats = thread.join().unwrap().unwrap();
     assert_eq!(stats.received, 5, "the five requests, nothing else: {stats:?}");
 }
+
+/// Two devices of a group that answer each other forever neither lose a frame between them nor
+/// hold up the bus: the frames they exchange go on the bus turn after turn, each one reaches
+/// the other, and the stop flag still ends the loop.
+#[test]
+fn devices_that_answer_each_other_forever_lose_nothing_and_do_not_starve_the_bus() {
+    use drive::node::{AnyNode, run_group};
+    use od_runtime::od::AbortCode;
+    use od_runtime::{Micros, NmtState, NodeId};
+    use std::sync::atomic::AtomicU64;
+
+    /// Answers each frame of its peer (and the master's kick-off, 000h) with one of its own.
+    struct Echo {
+        id: u32,
+        peer: u32,
+        owed: u32,
+        heard: Arc<AtomicU64>,
+        said: Arc<AtomicU64>,
+    }
+    impl AnyNode for Echo {
+        fn handle(&mut self, frame: &CanFrame, _now: Micros) {
+            if frame.id() == 0x100 + self.peer {
+                self.heard.fetch_add(1, Ordering::SeqCst);
+                self.owed += 1;
+            } else if frame.id() == 0 {
+                self.owed += 1;
+            }
+        }
+        fn poll(&mut self, _now: Micros, emit: &mut dyn FnMut(CanFrame)) {
+            for _ in 0..std::mem::take(&mut self.owed) {
+                self.said.fetch_add(1, Ordering::SeqCst);
+                emit(CanFrame::standard(0x100 + self.id, &[]).unwrap());
+            }
+        }
+        fn next_deadline(&self) -> Micros {
+            Micros::MAX
+        }
+        fn node_id(&self) -> NodeId {
+            NodeId::new(u8::try_from(self.id).unwrap()).unwrap()
+        }
+        fn nmt_state(&self) -> NmtState {
+            NmtState::Operational
+        }
+        fn upload(&mut self, _index: u16, _sub: u8) -> Result<Vec<u8>, AbortCode> {
+            Err(AbortCode::NO_OBJECT)
+        }
+        fn as_any(&self) -> &dyn std::any::Any {
+            self
+        }
+        fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
+            self
+        }
+    }
+
+    let bus = MemoryBus::new();
+    let mut master = bus.endpoint();
+    let mut device = bus.endpoint();
+    let counters: Vec<Arc<AtomicU64>> = (0..4).map(|_| Arc::new(AtomicU64::new(0))).collect();
+    let (heard_a, said_a, heard_b, said_b) =
+        (Arc::clone(&counters[0]), Arc::clone(&counters[1]), Arc::clone(&counters[2]), Arc::clone(&counters[3]));
+    let stop = Arc::new(AtomicBool::new(false));
+    let thread = {
+        let stop = Arc::clone(&stop);
+        std::thread::spawn(move || {
+            let mut a = Echo { id: 1, peer: 2, owed: 0, heard: heard_a, said: said_a };
+            let mut b = Echo { id: 2, peer: 1, owed: 0, heard: heard_b, said: said_b };
+            let mut group: [&mut dyn AnyNode; 2] = [&mut a, &mut b];
+            run_group(&mut group, &mut device, &MonotonicClock::new(), &stop)
+        })
+    };
+    // Only node 1 starts: from then on they answer each other.
+    master.send(CanFrame::standard(0x000, &[]).unwrap()).unwrap();
+    std::thread::sleep(Duration::from_millis(20));
+    let before = master.pending();
+    // The bus is still served: a second kick-off is heard (each node then owes one more).
+    master.send(CanFrame::standard(0x000, &[]).unwrap()).unwrap();
+    std::thread::sleep(Duration::from_millis(20));
+    stop.store(true, Ordering::SeqCst);
+    let stats = thread.join().unwrap().unwrap();
+    assert_eq!(stats.received, 2, "{stats:?}");
+    let [heard_a, said_a, heard_b, said_b] = [0, 1, 2, 3].map(|i| counters[i].load(Ordering::SeqCst));
+    assert!(said_a > 100 && said_b > 100, "{said_a} {said_b}");
+    // Every frame one said reached the other, but those said in the very last turn.
+    assert!(heard_b <= said_a && said_a - heard_b <= 2, "node 1 said {said_a}, node 2 heard {heard_b}");
+    assert!(heard_a <= said_b && said_b - heard_a <= 2, "node 2 said {said_b}, node 1 heard {heard_a}");
+    // And all of it went on the bus, turn after turn.
+    assert!(before > 0);
+    assert_eq!(master.pending() as u64 + master.dropped(), said_a + said_b);
+}
