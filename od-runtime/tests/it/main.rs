@@ -3,7 +3,10 @@
 
 #[cfg(feature = "embedded-can")]
 mod can;
+#[cfg(feature = "cia402")]
 mod cia402;
+#[cfg(not(feature = "cia402"))]
+mod cia402_off;
 mod common;
 mod handles;
 mod master;

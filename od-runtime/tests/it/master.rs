@@ -860,6 +860,7 @@ fn node_that_disappears_mid_transfer_times_out_and_the_next_transfer_works() {
 }
 
 #[test]
+#[cfg(feature = "sdo-block")]
 fn lost_block_segments_are_sent_again() {
     let data: Vec<u8> = (0..1000).map(|i| (i * 13) as u8).collect();
     // Any segment but the one that ends a block (the 127th, the 143rd and last): the receiver
@@ -897,6 +898,7 @@ fn lost_block_segments_are_sent_again() {
 }
 
 #[test]
+#[cfg(feature = "sdo-block")]
 fn lost_block_end_segment_times_out() {
     let data = vec![0x55; 1000];
     for lose in [127usize, 143] {
@@ -1031,6 +1033,7 @@ proptest! {
     /// sequence numbers and the size indication catch it, or the transfer fails; it never
     /// completes with a wrong value.
     #[test]
+    #[cfg(feature = "sdo-block")]
     fn block_upload_detects_a_flipped_bit(
         data in prop::collection::vec(any::<u8>(), 1..300),
         which in any::<prop::sample::Index>(),

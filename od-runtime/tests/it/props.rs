@@ -110,7 +110,9 @@ proptest! {
         segmented in any::<bool>(),
     ) {
         let mut h = Harness::new();
-        if segmented {
+        // Without `sdo-block` the device has segmented transfers only.
+        let block = cfg!(feature = "sdo-block");
+        if segmented || !block {
             // The last segment's answer carries that segment's toggle bit.
             let segments = data.len().div_ceil(7).max(1);
             let last = if segments % 2 == 0 { "581 30 00 00 00 00 00 00 00" } else { "581 20 00 00 00 00 00 00 00" };
@@ -120,7 +122,9 @@ proptest! {
             prop_assert_eq!(block_download(&mut h, 0x2003, &data, crc, lose), "581 A1 00 00 00 00 00 00 00");
         }
         prop_assert_eq!(h.od().bytes(0x2003, 0), data.clone());
-        prop_assert_eq!(block_upload(&mut h, 0x2003, 0, blk, crc), data);
+        if block {
+            prop_assert_eq!(block_upload(&mut h, 0x2003, 0, blk, crc), data);
+        }
     }
 
     #[test]

@@ -2,6 +2,7 @@
 
 use crate::common;
 use common::*;
+#[cfg(feature = "sdo-block")]
 use od_runtime::crc::crc16_ccitt;
 use od_runtime::od::ObjectDictionary;
 
@@ -19,8 +20,9 @@ fn expedited_download_and_upload_frames() {
     h.exchange("601 22 05 20 00 F6 00 00 00", &["581 60 05 20 00 00 00 00 00"]);
     assert_eq!(h.od().get(0x2005, 0), -10);
     h.exchange("601 2F 60 60 00 03 00 00 00", &["581 60 60 60 00 00 00 00 00"]);
-    // 6060h is mirrored into 6061h.
-    h.exchange("601 40 61 60 00 00 00 00 00", &["581 4F 61 60 00 03 00 00 00"]);
+    // 6060h is mirrored into 6061h (by the CiA 402 state machine; without it, a plain object).
+    let display = if cfg!(feature = "cia402") { "581 4F 61 60 00 03 00 00 00" } else { "581 4F 61 60 00 00 00 00 00" };
+    h.exchange("601 40 61 60 00 00 00 00 00", &[display]);
     // Expedited write of 2 bytes to a U16.
     h.exchange("601 2B 17 10 00 E8 03 00 00", &["581 60 17 10 00 00 00 00 00"]);
     assert_eq!(h.od().get(0x1017, 0), 1000);
@@ -119,10 +121,12 @@ fn abort_codes() {
     h.exchange("601 2F 19 10 00 05 00 00 00", &["581 80 19 10 00 22 00 00 08"]);
     // Store with a wrong signature.
     h.exchange("601 23 10 10 01 73 61 76 00", &["581 80 10 10 01 20 00 00 08"]);
-    // Local control: controlword while the drive is not in remote.
-    h.dev.set_remote(false);
-    h.exchange("601 2B 40 60 00 06 00 00 00", &["581 80 40 60 00 21 00 00 08"]);
-    h.dev.set_remote(true);
+    // Local control: controlword while the drive is not in remote (CiA 402 only).
+    if cfg!(feature = "cia402") {
+        h.dev.set_remote(false);
+        h.exchange("601 2B 40 60 00 06 00 00 00", &["581 80 40 60 00 21 00 00 08"]);
+        h.dev.set_remote(true);
+    }
     // Out of memory: more than the 1 KiB transfer buffer, within the DOMAIN's capacity.
     h.exchange("601 21 03 20 00 00 05 00 00", &["581 80 03 20 00 05 00 04 05"]);
     // The client's abort ends a transfer silently.
@@ -143,6 +147,7 @@ fn application_veto() {
 }
 
 #[test]
+#[cfg(feature = "sdo-block")]
 fn block_download_with_crc() {
     let mut h = Harness::new();
     let data: Vec<u8> = (0..1000u32).map(|i| (i * 7 + 3) as u8).collect();
@@ -164,6 +169,7 @@ fn block_download_with_crc() {
 }
 
 #[test]
+#[cfg(feature = "sdo-block")]
 fn block_download_errors() {
     let mut h = Harness::new();
     // Wrong CRC.
@@ -205,6 +211,7 @@ fn block_download_errors() {
 }
 
 #[test]
+#[cfg(feature = "sdo-block")]
 fn block_upload_with_crc() {
     let mut h = Harness::new();
     let data: Vec<u8> = (0..1000u32).map(|i| (i * 31 + 1) as u8).collect();
@@ -218,6 +225,7 @@ fn block_upload_with_crc() {
 }
 
 #[test]
+#[cfg(feature = "sdo-block")]
 fn block_upload_frames_and_retransmission() {
     let mut h = Harness::new();
     // 1008h (21 bytes) in blocks of 2: exact frames.
@@ -263,12 +271,15 @@ fn upload_larger_than_the_buffer_is_out_of_memory() {
     let mut h = Harness::new();
     h.dev.write(0x2003, 0, &[7u8; 1500]).unwrap();
     h.exchange("601 40 03 20 00 00 00 00 00", &["581 80 03 20 00 05 00 04 05"]);
-    h.exchange("601 A4 03 20 00 10 00 00 00", &["581 80 03 20 00 05 00 04 05"]);
+    // A block upload: out of memory too, or, without `sdo-block`, refused as an unknown command.
+    let block = if cfg!(feature = "sdo-block") { "581 80 03 20 00 05 00 04 05" } else { "581 80 03 20 00 01 00 04 05" };
+    h.exchange("601 A4 03 20 00 10 00 00 00", &[block]);
     // A local write checks the dictionary's limits too.
     assert_eq!(h.dev.write(0x2003, 0, &[7u8; 3000]), Err(od_runtime::od::AbortCode::LENGTH_TOO_HIGH));
 }
 
 #[test]
+#[cfg(feature = "sdo-block")]
 fn block_download_whose_last_segment_is_lost_times_out() {
     let mut h = Harness::new();
     h.exchange("601 C6 01 20 00 0A 00 00 00", &["581 A4 01 20 00 7F 00 00 00"]);
@@ -280,4 +291,20 @@ fn block_download_whose_last_segment_is_lost_times_out() {
     h.exchange("601 C6 01 20 00 0A 00 00 00", &["581 A4 01 20 00 7F 00 00 00"]);
     assert!(h.send("601 02 61 62 63 64 65 66 67").is_empty());
     h.exchange("601 83 68 69 6A 00 00 00 00", &["581 A2 00 7F 00 00 00 00 00"]);
+}
+
+/// Without the `sdo-block` feature both block initiates are refused as unknown commands
+/// (0504 0001h), which a client takes as "no block transfers here" and falls back to a normal
+/// transfer; the normal transfers of the same object still work.
+#[test]
+#[cfg(not(feature = "sdo-block"))]
+fn without_sdo_block_block_transfers_are_refused_as_unknown_commands() {
+    let mut h = Harness::new();
+    h.exchange("601 C6 03 20 00 0A 00 00 00", &["581 80 03 20 00 01 00 04 05"]);
+    h.exchange("601 C2 03 20 00 0A 00 00 00", &["581 80 03 20 00 01 00 04 05"]);
+    h.exchange("601 A0 03 20 00 10 00 00 00", &["581 80 03 20 00 01 00 04 05"]);
+    h.exchange("601 A4 03 20 00 10 00 00 00", &["581 80 03 20 00 01 00 04 05"]);
+    let data: Vec<u8> = (0..10).collect();
+    segmented_download(&mut h, 0x2003, &data);
+    assert_eq!(upload(&mut h, 0x2003, 0), data);
 }

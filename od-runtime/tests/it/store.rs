@@ -2,12 +2,15 @@
 
 use crate::common;
 use common::*;
+#[cfg(feature = "store")]
 use od_runtime::{Device, NoStorage, NodeId};
 
 const SAVE: [u8; 4] = *b"save";
+#[cfg(feature = "store")]
 const LOAD: [u8; 4] = *b"load";
 
 #[test]
+#[cfg(feature = "store")]
 fn store_all_then_reset_node_loads_stored_values() {
     let mut h = Harness::new();
     h.exchange("601 40 10 10 01 00 00 00 00", &["581 43 10 10 01 01 00 00 00"]);
@@ -32,6 +35,7 @@ fn store_all_then_reset_node_loads_stored_values() {
 }
 
 #[test]
+#[cfg(feature = "store")]
 fn store_one_area() {
     let mut h = Harness::new();
     h.sdo_write_ok(0x607A, 0, &[5, 0, 0, 0]);
@@ -47,6 +51,7 @@ fn store_one_area() {
 }
 
 #[test]
+#[cfg(feature = "store")]
 fn restore_defaults_takes_effect_at_the_next_reset() {
     let mut h = Harness::new();
     h.sdo_write_ok(0x607A, 0, &[5, 0, 0, 0]);
@@ -70,6 +75,7 @@ fn restore_defaults_takes_effect_at_the_next_reset() {
 }
 
 #[test]
+#[cfg(feature = "store")]
 fn signatures_and_failures() {
     let mut h = Harness::new();
     assert_eq!(h.sdo_write_abort(0x1010, 1, b"SAVE"), 0x0800_0020);
@@ -88,6 +94,7 @@ fn signatures_and_failures() {
 }
 
 #[test]
+#[cfg(feature = "store")]
 fn stored_values_survive_a_new_device() {
     let mut h = Harness::new();
     h.sdo_write_ok(0x6060, 0, &[3]);
@@ -95,4 +102,21 @@ fn stored_values_survive_a_new_device() {
     let storage = h.dev.storage_mut().clone();
     let h2 = Harness::with_storage(storage);
     assert_eq!(h2.od().get(0x6060, 0), 3);
+}
+
+/// Without the `store` feature nothing is ever saved: "save" is refused with 0800 0020h (as by a
+/// device without storage), "load" is accepted and changes nothing, a reset keeps the defaults,
+/// and the storage is never touched.
+#[test]
+#[cfg(not(feature = "store"))]
+fn without_the_store_feature_save_is_refused_and_nothing_is_stored() {
+    let mut h = Harness::new();
+    h.sdo_write_ok(0x1017, 0, &[0xF4, 0x01]);
+    assert_eq!(h.sdo_write_abort(0x1010, 1, &SAVE), 0x0800_0020);
+    assert_eq!(h.sdo_write_abort(0x1010, 2, &SAVE), 0x0800_0020);
+    h.sdo_write_ok(0x1011, 1, b"load");
+    h.send("000 81 01");
+    assert_eq!(h.od().get(0x1017, 0), 0, "the default after the reset");
+    assert_eq!(h.dev.storage_mut().saves, 0);
+    assert!(h.dev.storage_mut().images.is_empty());
 }

@@ -196,7 +196,11 @@ const fn table() -> [Row; N] {
     push!(sized(e(0x2009, 0, VisibleString, Rw, true, DefaultValue::Bytes(b"ABCDEFGHIJ")), 16));
     push!(e(0x603F, 0, Unsigned16, Ro, true, none));
     push!(e(0x6040, 0, Unsigned16, Rww, true, none));
-    push!(e(0x6041, 0, Unsigned16, Ro, true, none));
+    // Without the `cia402` feature 6041h is a plain object: it starts at "switch on disabled"
+    // (0240h), where the state machine puts it at boot, so tests about other things see the
+    // same frames either way. With the feature it starts at 0 and the state machine must set it.
+    let statusword = if cfg!(feature = "cia402") { none } else { int(0x0240) };
+    push!(e(0x6041, 0, Unsigned16, Ro, true, statusword));
     push!(e(0x605A, 0, Integer16, Rw, false, int(2)));
     push!(limits(e(0x6060, 0, Integer8, Rw, true, none), -4, 10));
     push!(e(0x6061, 0, Integer8, Ro, true, none));
