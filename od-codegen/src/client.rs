@@ -290,20 +290,8 @@ fn units_items(plan: &Plan<'_>, sc: &Sidecar, taken: &mut BTreeSet<String>) -> T
     let units_fn = free("units", taken);
     let units_with = free("units_with", taken);
     let scaling = free("scaling", taken);
-    let mut dims: Vec<crate::sidecar::Dimension> = Vec::new();
-    let mut units: Vec<crate::sidecar::Unit> = Vec::new();
-    for s in &sc.unit_systems {
-        for (d, spec) in &s.units {
-            if !dims.contains(d) {
-                dims.push(*d);
-            }
-            if !units.contains(&spec.unit) {
-                units.push(spec.unit);
-            }
-        }
-    }
-    dims.sort();
-    units.sort();
+    // The same sets, in the same order, as the device side's `Units` enums.
+    let (units, dims) = crate::units::units_and_dimensions(sc);
     let dim_arms = dims.iter().map(|d| {
         let d = format_ident!("{d:?}");
         quote!(::od_master::remote::Dimension::#d => Some(super::units::Dimension::#d))

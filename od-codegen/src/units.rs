@@ -211,7 +211,7 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sc: &Sidecar, sink: &mut Si
 
 /// The units and the dimensions the unit systems use, each sorted (the order of the generated
 /// enums and of the per-dimension slots).
-fn units_and_dimensions(sc: &Sidecar) -> (Vec<Unit>, Vec<Dimension>) {
+pub(crate) fn units_and_dimensions(sc: &Sidecar) -> (Vec<Unit>, Vec<Dimension>) {
     let mut units: Vec<Unit> = Vec::new();
     let mut dims: Vec<Dimension> = Vec::new();
     for s in &sc.unit_systems {
