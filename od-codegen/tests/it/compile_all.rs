@@ -33,6 +33,30 @@ fn target_dir() -> PathBuf {
     }
 }
 
+/// `cargo check` of the generated crate at `krate`, in its own target directory beside it.
+fn check(krate: &Path) -> std::process::Output {
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    Command::new(cargo)
+        .arg("check")
+        .arg("--quiet")
+        .arg("--offline")
+        .arg("--manifest-path")
+        .arg(krate.join("Cargo.toml"))
+        .arg("--target-dir")
+        .arg(krate.join("target"))
+        // The outer `cargo test`'s settings are not the inner build's.
+        .env_remove("RUSTFLAGS")
+        .env_remove("CARGO_ENCODED_RUSTFLAGS")
+        .env_remove("CARGO_TARGET_DIR")
+        .env_remove("CARGO_BUILD_TARGET_DIR")
+        // Incremental compilation costs more than it saves on crates of this size (about 40 MB
+        // of source): a fresh check of the devices' crate took 57 s with it and 18 s without. An
+        // unchanged crate is not rechecked either way; a changed one is rechecked whole.
+        .env("CARGO_INCREMENTAL", "0")
+        .output()
+        .expect("run cargo check")
+}
+
 /// The corpus files, or `None` (with a message) when `$EDS_CORPUS_DIR` is not set.
 fn corpus() -> Option<Vec<PathBuf>> {
     let Some(dir) = std::env::var_os("EDS_CORPUS_DIR") else {
@@ -140,27 +164,8 @@ fn every_description_generates_code_that_compiles_with_warnings_denied() {
     );
     od_codegen::write_if_changed(&krate.join("Cargo.toml"), &manifest).unwrap();
 
-    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     let started = std::time::Instant::now();
-    let out = Command::new(cargo)
-        .arg("check")
-        .arg("--quiet")
-        .arg("--offline")
-        .arg("--manifest-path")
-        .arg(krate.join("Cargo.toml"))
-        .arg("--target-dir")
-        .arg(krate.join("target"))
-        // The outer `cargo test`'s settings are not the inner build's.
-        .env_remove("RUSTFLAGS")
-        .env_remove("CARGO_ENCODED_RUSTFLAGS")
-        .env_remove("CARGO_TARGET_DIR")
-        .env_remove("CARGO_BUILD_TARGET_DIR")
-        // Incremental compilation costs more than it saves on a crate of this size (about 40 MB
-        // of source): a fresh check took 57 s with it and 18 s without. An unchanged crate is
-        // not rechecked either way; a changed one is rechecked whole.
-        .env("CARGO_INCREMENTAL", "0")
-        .output()
-        .expect("run cargo check");
+    let out = check(&krate);
     let stderr = String::from_utf8_lossy(&out.stderr);
     println!(
         "{} descriptions ({fixtures} fixtures), {deviations} deviations (warnings), generated in {:.1?}, checked in {:.1?}",
@@ -241,25 +246,8 @@ fn every_description_generates_a_client_that_compiles_with_warnings_denied() {
     if !krate.join("Cargo.lock").exists() {
         std::fs::write(krate.join("Cargo.lock"), lock).unwrap();
     }
-    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     let started = std::time::Instant::now();
-    let out = Command::new(cargo)
-        .arg("check")
-        .arg("--quiet")
-        .arg("--offline")
-        .arg("--manifest-path")
-        .arg(krate.join("Cargo.toml"))
-        .arg("--target-dir")
-        .arg(krate.join("target"))
-        .env_remove("RUSTFLAGS")
-        .env_remove("CARGO_ENCODED_RUSTFLAGS")
-        .env_remove("CARGO_TARGET_DIR")
-        .env_remove("CARGO_BUILD_TARGET_DIR")
-        // As for the devices' crate: a large generated crate checks faster without incremental
-        // compilation.
-        .env("CARGO_INCREMENTAL", "0")
-        .output()
-        .expect("run cargo check");
+    let out = check(&krate);
     let stderr = String::from_utf8_lossy(&out.stderr);
     println!("{} clients, checked in {:.1?}", modules.len(), started.elapsed());
     assert!(out.status.success(), "the generated clients do not compile (crate at {}):\n{stderr}", krate.display());
