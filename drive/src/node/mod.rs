@@ -87,7 +87,7 @@ pub use run::{
     Backoff, BusEvent, Clock, MonotonicClock, RunStats, run, run_group, run_group_reconnecting, run_reconnecting,
 };
 pub use sim::Sim;
-pub use virtual_bus::{ADVANCE_STEP, STEP, Seen, VirtualBus};
+pub use virtual_bus::{ADVANCE_STEP, STEP, Seen, VirtualBus, spawn_with_master};
 
 /// Events held between the device call that raised them and their delivery to the
 /// application. A single frame raises at most a few dozen (an RPDO of 64 one-bit entries);

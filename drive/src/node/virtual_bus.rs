@@ -3,6 +3,7 @@
 use std::collections::VecDeque;
 use std::future::{Future, poll_fn};
 use std::pin::pin;
+use std::sync::{Arc, Mutex, Weak};
 use std::task::Poll;
 use std::time::Duration;
 
@@ -353,4 +354,32 @@ fn drain(probe: &mut LocalEndpoint) -> usize {
         n += 1;
     }
     n
+}
+
+/// `sim` with an [`od_master::Bus`] on its in-memory bus, for a program that runs its own tokio
+/// runtime: a task spawned on the current runtime moves the simulation to tokio's clock every
+/// `step`, until the simulation is dropped. On a paused clock
+/// (`#[tokio::test(start_paused = true)]`) the drives and the master move together in virtual
+/// time; on a real one, in real time. ([`VirtualBus`] does the same on a runtime of its own, for
+/// callers that do not run async code.) Call it within a runtime.
+pub fn spawn_with_master(sim: Sim, config: od_master::Config, step: Duration) -> (od_master::Bus, Arc<Mutex<Sim>>) {
+    let bus = od_master::Bus::start(od_bus::tokio::Bus::attach(sim.bus()), config);
+    let sim = Arc::new(Mutex::new(sim));
+    tokio::spawn(follow_tokio_clock(Arc::downgrade(&sim), step));
+    (bus, sim)
+}
+
+/// Moves the simulation to tokio's time every `step`, until it is dropped.
+async fn follow_tokio_clock(sim: Weak<Mutex<Sim>>, step: Duration) {
+    let start = Instant::now();
+    loop {
+        {
+            let Some(sim) = sim.upgrade() else { return };
+            let mut sim = sim.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+            let t = Micros::try_from(start.elapsed().as_micros()).unwrap_or(Micros::MAX);
+            let now = sim.now();
+            sim.advance(t.saturating_sub(now));
+        }
+        tokio::time::sleep(step).await;
+    }
 }

@@ -285,7 +285,7 @@ async fn main() -> ExitCode {
 mod tests {
     use super::*;
     use drive::node::Sim;
-    use std::sync::{Mutex, Weak};
+    use std::sync::Mutex;
 
     /// The example as CI runs it (`cargo run -p network-boot`): the example network on the three
     /// simulated drives in real time, every node booted and sending its TPDO 1, every axis moved.
@@ -313,25 +313,7 @@ mod tests {
             let config = NodeConfig { node_id: Some(id), ..Default::default() };
             sim.add(kind.build(&config, &DeviceApps::new()).expect("a simulated drive"));
         }
-        let bus = Bus::start(od_bus::tokio::Bus::attach(sim.bus()), Config::default());
-        let sim = Arc::new(Mutex::new(sim));
-        tokio::spawn(clock(Arc::downgrade(&sim)));
-        (bus, sim)
-    }
-
-    /// Moves the simulation to tokio's time every 200 µs, until it is dropped.
-    async fn clock(sim: Weak<Mutex<Sim>>) {
-        let start = tokio::time::Instant::now();
-        loop {
-            {
-                let Some(sim) = sim.upgrade() else { return };
-                let mut sim = sim.lock().unwrap();
-                let t = u64::try_from(start.elapsed().as_micros()).unwrap();
-                let now = sim.now();
-                sim.advance(t.saturating_sub(now));
-            }
-            tokio::time::sleep(Duration::from_micros(200)).await;
-        }
+        drive::node::spawn_with_master(sim, Config::default(), Duration::from_micros(200))
     }
 
     fn raw(moved: &[Result<Moved, Error>; 3]) -> Vec<i32> {

@@ -1,12 +1,11 @@
 //! Simulated drives on the in-memory bus, moved in step with tokio's (paused) clock.
 
-use std::sync::{Arc, Mutex, Weak};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use drive::drives::DeviceApps;
 use drive::node::{DeviceKind, NodeConfig, Sim};
 use od_master::{Bus, Config};
-use tokio::time::Instant;
 
 /// How far the simulation moves between two looks at the bus: the latency of a simulated
 /// node's answer.
@@ -33,25 +32,8 @@ pub fn net_with(nodes: &[(DeviceKind, u8)], config: Config) -> Net {
     for &(kind, id) in nodes {
         sim.add(node(kind, id));
     }
-    let bus = Bus::start(od_bus::tokio::Bus::attach(sim.bus()), config);
-    let sim = Arc::new(Mutex::new(sim));
-    tokio::spawn(clock(Arc::downgrade(&sim)));
+    let (bus, sim) = drive::node::spawn_with_master(sim, config, STEP);
     Net { bus, sim }
-}
-
-/// Moves the simulation to tokio's time every [`STEP`], until the simulation is dropped.
-async fn clock(sim: Weak<Mutex<Sim>>) {
-    let start = Instant::now();
-    loop {
-        {
-            let Some(sim) = sim.upgrade() else { return };
-            let mut sim = sim.lock().unwrap();
-            let t = u64::try_from(start.elapsed().as_micros()).unwrap();
-            let now = sim.now();
-            sim.advance(t.saturating_sub(now));
-        }
-        tokio::time::sleep(STEP).await;
-    }
 }
 
 /// Lets `d` of virtual time pass.
