@@ -747,29 +747,44 @@ pub(crate) async fn remap(
     node.write_idempotent(comm, 1, cob).await.map_err(|e| wrap(comm, 1, e))
 }
 
-/// An RPDO of a remote node: the master sends it.
+/// A PDO of a remote node with layout `P`: [`Rpdo`] (the master sends it) or [`Tpdo`] (the
+/// master receives it); `D` is [`Sent`] or [`Received`].
 #[derive(Debug)]
-pub struct Rpdo<'a, P> {
+pub struct Pdo<'a, P, D> {
     node: &'a Node,
     cob_id: Option<u16>,
     check: fn(&[u32]) -> Result<u32, AbortCode>,
-    layout: PhantomData<fn(P)>,
+    layout: PhantomData<fn(P, D) -> P>,
 }
 
-impl<'a, P: PdoLayout> Rpdo<'a, P> {
-    /// The RPDO of layout `P` on `node`; `check` is the device's mapping check.
+/// The master sends the PDO: [`Rpdo`].
+#[derive(Debug)]
+pub enum Sent {}
+
+/// The master receives the PDO: [`Tpdo`].
+#[derive(Debug)]
+pub enum Received {}
+
+/// An RPDO of a remote node: the master sends it.
+pub type Rpdo<'a, P> = Pdo<'a, P, Sent>;
+
+/// A TPDO of a remote node: the master receives it.
+pub type Tpdo<'a, P> = Pdo<'a, P, Received>;
+
+impl<'a, P: PdoLayout, D> Pdo<'a, P, D> {
+    /// The PDO of layout `P` on `node`; `check` is the device's mapping check.
     pub fn new(node: &'a Node, check: fn(&[u32]) -> Result<u32, AbortCode>) -> Self {
         Self { node, cob_id: None, check, layout: PhantomData }
     }
 
-    /// On `cob_id` instead of the predefined connection set's (RPDOs 1–4) or the one the
-    /// device holds (the others).
+    /// On `cob_id` instead of the predefined connection set's (PDOs 1–4) or the one the device
+    /// holds (the others).
     pub fn with_cob_id(mut self, cob_id: u16) -> Self {
         self.cob_id = Some(cob_id & 0x7FF);
         self
     }
 
-    /// The COB-ID it is sent on.
+    /// The COB-ID it goes on.
     pub async fn cob_id(&self) -> Result<u16, Error> {
         match self.cob_id {
             Some(c) => Ok(c),
@@ -782,7 +797,9 @@ impl<'a, P: PdoLayout> Rpdo<'a, P> {
         let cob = self.cob_id().await?;
         map_pdo(self.node, P::DIRECTION, P::NUMBER, cob, P::MAPPING, self.check).await
     }
+}
 
+impl<P: PdoLayout> Pdo<'_, P, Sent> {
     /// Sends `value`.
     pub async fn send(&self, value: P) -> Result<(), Error> {
         let cob = self.cob_id().await?;
@@ -792,42 +809,7 @@ impl<'a, P: PdoLayout> Rpdo<'a, P> {
     }
 }
 
-/// A TPDO of a remote node: the master receives it.
-#[derive(Debug)]
-pub struct Tpdo<'a, P> {
-    node: &'a Node,
-    cob_id: Option<u16>,
-    check: fn(&[u32]) -> Result<u32, AbortCode>,
-    layout: PhantomData<fn() -> P>,
-}
-
-impl<'a, P: PdoLayout> Tpdo<'a, P> {
-    /// The TPDO of layout `P` on `node`; `check` is the device's mapping check.
-    pub fn new(node: &'a Node, check: fn(&[u32]) -> Result<u32, AbortCode>) -> Self {
-        Self { node, cob_id: None, check, layout: PhantomData }
-    }
-
-    /// On `cob_id` instead of the predefined connection set's (TPDOs 1–4) or the one the
-    /// device holds (the others).
-    pub fn with_cob_id(mut self, cob_id: u16) -> Self {
-        self.cob_id = Some(cob_id & 0x7FF);
-        self
-    }
-
-    /// The COB-ID it comes on.
-    pub async fn cob_id(&self) -> Result<u16, Error> {
-        match self.cob_id {
-            Some(c) => Ok(c),
-            None => cob_id(self.node, P::DIRECTION, P::NUMBER).await,
-        }
-    }
-
-    /// Maps the layout on the device ([`map_pdo`]) on its COB-ID.
-    pub async fn configure(&self) -> Result<(), Error> {
-        let cob = self.cob_id().await?;
-        map_pdo(self.node, P::DIRECTION, P::NUMBER, cob, P::MAPPING, self.check).await
-    }
-
+impl<P: PdoLayout> Pdo<'_, P, Received> {
     /// Receives this TPDO from now on.
     pub async fn subscribe(&self) -> Result<TpdoReceiver<P>, Error> {
         let cob_id = self.cob_id().await?;
@@ -840,7 +822,7 @@ impl<'a, P: PdoLayout> Tpdo<'a, P> {
     }
 }
 
-/// Received TPDOs of one layout ([`Tpdo::subscribe`]).
+/// Received TPDOs of one layout ([`Pdo::subscribe`]).
 #[derive(Debug)]
 pub struct TpdoReceiver<P> {
     frames: broadcast::Receiver<od_bus::CanFrame>,
