@@ -159,6 +159,7 @@ impl Bus {
             events: events.clone(),
             frames: frames.clone(),
             out: Vec::new(),
+            wire: Vec::new(),
             sends: Vec::new(),
             clock: None,
             cyclic: Vec::new(),
@@ -389,6 +390,8 @@ struct Task {
     events: broadcast::Sender<Event>,
     frames: broadcast::Sender<CanFrame>,
     out: Vec<Frame>,
+    /// `out` as bus frames, for one write (kept to reuse its allocation).
+    wire: Vec<CanFrame>,
     sends: Vec<(CanFrame, oneshot::Sender<Result<(), Error>>)>,
     /// Wakes the task at SYNC time to the microsecond while SYNC runs.
     clock: Option<SyncClock>,
@@ -616,9 +619,10 @@ impl Task {
     /// went). A machine's frame that cannot be sent (a socketcand link that is down) is lost
     /// like a frame lost on the wire: the SDO timeout and retries deal with it.
     async fn flush(&mut self) {
-        let frames: Vec<CanFrame> = self.out.drain(..).map(CanFrame::from).collect();
-        if !frames.is_empty() {
-            let _ = self.tx.send_all(&frames).await;
+        self.wire.clear();
+        self.wire.extend(self.out.drain(..).map(CanFrame::from));
+        if !self.wire.is_empty() {
+            let _ = self.tx.send_all(&self.wire).await;
         }
         for (frame, reply) in std::mem::take(&mut self.sends) {
             let _ = reply.send(self.tx.send(frame).await.map_err(Error::from));
