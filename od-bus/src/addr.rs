@@ -23,6 +23,12 @@ const MAX_INTERFACE_LEN: usize = 15;
 ///   used first). An IPv6 host is written in brackets: `socketcand://[::1]:29536/can0`.
 /// * `socketcan://IFACE`: a Linux CAN interface (`can0`, `vcan0`); needs the `socketcan`
 ///   feature. `socketcan:IFACE` is accepted too.
+/// * `slcan://PORT?bitrate=500000`: an slcan serial adapter (CANable, USBtin, Lawicel CANUSB)
+///   on the serial port PORT: `slcan:///dev/ttyACM0` (Linux), `slcan://COM4` (Windows),
+///   `slcan:///dev/cu.usbmodem1101` (macOS). Options after `?`, joined by `&`: `bitrate=` the
+///   CAN bit rate (10000, 20000, 50000, 100000, 125000, 250000, 500000 (the default), 800000,
+///   1000000: `S0` to `S8`), `serial=` the serial port's speed (default 115200; USB adapters
+///   ignore it), `listen-only` (no acknowledgements, no transmissions).
 /// * `mem://NAME`: the in-memory bus of this process called NAME ([`MemoryBus::named`]);
 ///   `mem://` is the one called "". Blocking devices and async masters that open the same
 ///   name share one bus.
@@ -54,6 +60,17 @@ pub enum BusAddr {
         /// Interface name, such as `can0`.
         interface: String,
     },
+    /// An slcan adapter on a serial port.
+    Slcan {
+        /// The serial port: `/dev/ttyACM0`, `COM4`, `/dev/cu.usbmodem1101`.
+        port: String,
+        /// CAN bit rate, one of [`slcan::BITRATES`](crate::slcan::BITRATES).
+        bitrate: u32,
+        /// The serial port's speed in baud (USB adapters ignore it).
+        serial_baud: u32,
+        /// Open the channel listening only.
+        listen_only: bool,
+    },
     /// An in-memory bus of this process.
     Memory {
         /// Its name ("" for `mem://`).
@@ -82,6 +99,9 @@ impl FromStr for BusAddr {
             }
             return Ok(BusAddr::SocketCan { interface: interface.to_owned() });
         }
+        if let Some(rest) = text.strip_prefix("slcan://").or_else(|| text.strip_prefix("slcan:")) {
+            return parse_slcan(rest).map_err(fail);
+        }
         if let Some(name) = text.strip_prefix("mem://") {
             if !name.is_empty() && parse_channel(name).is_err() {
                 return Err(fail("the name must be up to 64 printable characters"));
@@ -90,6 +110,40 @@ impl FromStr for BusAddr {
         }
         Err(fail("unknown scheme"))
     }
+}
+
+/// Default CAN bit rate of an slcan address.
+pub(crate) const SLCAN_BITRATE: u32 = 500_000;
+/// Default serial speed of an slcan address.
+pub(crate) const SLCAN_SERIAL_BAUD: u32 = 115_200;
+
+/// `PORT?bitrate=N&serial=N&listen-only` after `slcan://`.
+fn parse_slcan(rest: &str) -> Result<BusAddr, &'static str> {
+    let (port, options) = rest.split_once('?').unwrap_or((rest, ""));
+    if port.is_empty() || port.len() > 255 || !port.chars().all(|c| !c.is_control()) {
+        return Err("the serial port must be 1 to 255 printable characters (slcan:///dev/ttyACM0, slcan://COM4)");
+    }
+    let (mut bitrate, mut serial_baud, mut listen_only) = (SLCAN_BITRATE, SLCAN_SERIAL_BAUD, false);
+    for option in options.split('&').filter(|o| !o.is_empty()) {
+        match option.split_once('=') {
+            Some(("bitrate", value)) => {
+                bitrate = value
+                    .parse()
+                    .ok()
+                    .filter(|b| crate::slcan::bitrate_code(*b).is_some())
+                    .ok_or("bitrate must be 10000, 20000, 50000, 100000, 125000, 250000, 500000, 800000 or 1000000")?;
+            }
+            Some(("serial", value)) => {
+                serial_baud =
+                    value.parse().ok().filter(|b| *b > 0).ok_or("serial must be the port's speed in baud, such as 115200")?;
+            }
+            None if option == "listen-only" => listen_only = true,
+            Some(("listen-only", "true" | "1")) => listen_only = true,
+            Some(("listen-only", "false" | "0")) => listen_only = false,
+            _ => return Err("unknown slcan option: the options are bitrate=N, serial=BAUD and listen-only"),
+        }
+    }
+    Ok(BusAddr::Slcan { port: port.to_owned(), bitrate, serial_baud, listen_only })
 }
 
 /// `HOST:PORT`, the host non-empty, an IPv6 host in brackets.
@@ -118,6 +172,16 @@ impl fmt::Display for BusAddr {
         match self {
             BusAddr::Socketcand { host, port, channel } => write!(f, "socketcand://{host}:{port}/{channel}"),
             BusAddr::SocketCan { interface } => write!(f, "socketcan://{interface}"),
+            BusAddr::Slcan { port, bitrate, serial_baud, listen_only } => {
+                write!(f, "slcan://{port}?bitrate={bitrate}")?;
+                if *serial_baud != SLCAN_SERIAL_BAUD {
+                    write!(f, "&serial={serial_baud}")?;
+                }
+                if *listen_only {
+                    f.write_str("&listen-only")?;
+                }
+                Ok(())
+            }
             BusAddr::Memory { name } => write!(f, "mem://{name}"),
         }
     }
@@ -132,14 +196,29 @@ impl BusAddr {
         }
     }
 
+    /// The setup of an slcan address.
+    pub fn slcan_setup(&self) -> Option<crate::slcan::Setup> {
+        match self {
+            BusAddr::Slcan { bitrate, listen_only, .. } => {
+                Some(crate::slcan::Setup { bitrate: *bitrate, listen_only: *listen_only })
+            }
+            _ => None,
+        }
+    }
+
     /// Opens the bus, blocking: a [`SocketcandClient`] connected and in raw mode, a SocketCAN
-    /// socket, or an endpoint of the named [`MemoryBus`].
+    /// socket, an slcan adapter set up and open, or an endpoint of the named [`MemoryBus`].
     pub fn open(&self) -> Result<Box<dyn Endpoint>, TransportError> {
         match self {
             BusAddr::Socketcand { host, port, channel } => {
                 Ok(Box::new(SocketcandClient::connect((host_for_connect(host), *port), channel)?))
             }
             BusAddr::SocketCan { interface } => open_socketcan(interface),
+            BusAddr::Slcan { port, bitrate, serial_baud, listen_only } => Ok(Box::new(crate::slcan::SlcanPort::open(
+                port,
+                *serial_baud,
+                crate::slcan::Setup { bitrate: *bitrate, listen_only: *listen_only },
+            )?)),
             BusAddr::Memory { name } => Ok(Box::new(MemoryBus::named(name).endpoint())),
         }
     }
@@ -160,20 +239,23 @@ pub fn open(addr: &str) -> Result<Box<dyn Endpoint>, TransportError> {
     addr.parse::<BusAddr>()?.open()
 }
 
-#[cfg(all(feature = "socketcan", target_os = "linux"))]
+#[cfg(target_os = "linux")]
 fn open_socketcan(interface: &str) -> Result<Box<dyn Endpoint>, TransportError> {
     Ok(Box::new(crate::socketcan::SocketCan::open(interface)?))
 }
 
-#[cfg(not(all(feature = "socketcan", target_os = "linux")))]
+#[cfg(not(target_os = "linux"))]
 fn open_socketcan(interface: &str) -> Result<Box<dyn Endpoint>, TransportError> {
     Err(unavailable(interface))
 }
 
-#[cfg(not(all(feature = "socketcan", target_os = "linux")))]
+#[cfg(not(target_os = "linux"))]
 pub(crate) fn unavailable(interface: &str) -> TransportError {
     TransportError::Unavailable(format!(
-        "cannot open {interface}: SocketCAN needs Linux and a build with `--features socketcan`"
+        "cannot open socketcan://{interface}: SocketCAN is a Linux kernel interface and this is {}; \
+         reach a CAN adapter here with slcan://PORT (CANable, USBtin, Lawicel), or a Linux machine's \
+         interface with socketcand://HOST:PORT/{interface}",
+        std::env::consts::OS
     ))
 }
 
@@ -196,6 +278,19 @@ mod tests {
         assert_eq!("socketcan://can1".parse(), Ok(BusAddr::SocketCan { interface: "can1".into() }));
         assert_eq!("mem://".parse(), Ok(BusAddr::Memory { name: String::new() }));
         assert_eq!("mem://line-1".parse(), Ok(BusAddr::Memory { name: "line-1".into() }));
+        let slcan = |port: &str, bitrate, serial_baud, listen_only| BusAddr::Slcan {
+            port: port.into(),
+            bitrate,
+            serial_baud,
+            listen_only,
+        };
+        assert_eq!("slcan:///dev/ttyACM0".parse(), Ok(slcan("/dev/ttyACM0", 500_000, 115_200, false)));
+        assert_eq!("slcan://COM4?bitrate=1000000".parse(), Ok(slcan("COM4", 1_000_000, 115_200, false)));
+        assert_eq!(
+            "slcan:///dev/cu.usbmodem1101?bitrate=125000&serial=921600&listen-only".parse(),
+            Ok(slcan("/dev/cu.usbmodem1101", 125_000, 921_600, true))
+        );
+        assert_eq!("slcan:COM4?listen-only=true".parse(), Ok(slcan("COM4", 500_000, 115_200, true)));
     }
 
     #[test]
@@ -205,6 +300,8 @@ mod tests {
             ("tcp://[::1]:80/a", "socketcand://[::1]:80/a"),
             ("socketcand://h:007/c", "socketcand://h:7/c"),
             ("socketcan:vcan0", "socketcan://vcan0"),
+            ("slcan:COM4", "slcan://COM4?bitrate=500000"),
+            ("slcan:///dev/ttyACM0?listen-only=1&serial=9600", "slcan:///dev/ttyACM0?bitrate=500000&serial=9600&listen-only"),
         ] {
             assert_eq!(alias.parse::<BusAddr>().unwrap().to_string(), canonical);
         }
@@ -234,6 +331,16 @@ mod tests {
             ),
             ("socketcan:a/b", "the interface name must be 1 to 15 printable characters without '/'"),
             ("mem://a b", "the name must be up to 64 printable characters"),
+            ("slcan://", "the serial port must be 1 to 255 printable characters (slcan:///dev/ttyACM0, slcan://COM4)"),
+            (
+                "slcan://COM4?bitrate=300000",
+                "bitrate must be 10000, 20000, 50000, 100000, 125000, 250000, 500000, 800000 or 1000000",
+            ),
+            ("slcan://COM4?serial=0", "serial must be the port's speed in baud, such as 115200"),
+            (
+                "slcan://COM4?speed=1",
+                "unknown slcan option: the options are bitrate=N, serial=BAUD and listen-only",
+            ),
         ] {
             let err = bad.parse::<BusAddr>().unwrap_err();
             assert_eq!(err.reason(), reason, "{bad:?}");
@@ -249,10 +356,21 @@ mod tests {
         assert!(err.len() < 250, "{}", err.len());
     }
 
-    #[cfg(not(all(feature = "socketcan", target_os = "linux")))]
+    #[cfg(not(target_os = "linux"))]
     #[test]
-    fn socketcan_without_the_feature_says_how_to_get_it() {
+    fn socketcan_elsewhere_names_the_platform_and_the_alternatives() {
         let err = open("socketcan://vcan0").err().unwrap().to_string();
-        assert!(err.contains("--features socketcan"), "{err}");
+        assert!(err.contains(std::env::consts::OS) && err.contains("slcan://"), "{err}");
+    }
+
+    /// SocketCAN is in every Linux build, with no feature to ask for it: opening an interface
+    /// that does not exist fails in the `socketcan` crate (naming the interface), not with
+    /// "unavailable".
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn socketcan_is_built_in_on_linux() {
+        let err = open("socketcan://nosuchcan9").err().unwrap();
+        assert!(!matches!(err, TransportError::Unavailable(_)), "{err}");
+        assert!(err.to_string().contains("nosuchcan9"), "{err}");
     }
 }

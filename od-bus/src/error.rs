@@ -3,7 +3,8 @@
 use crate::frame::FrameError;
 
 /// The accepted forms, as error messages name them.
-pub(crate) const FORMS: &str = "socketcand://HOST:PORT/CHANNEL, socketcan://IFACE or mem://NAME";
+pub(crate) const FORMS: &str =
+    "socketcand://HOST:PORT/CHANNEL, socketcan://IFACE, slcan://PORT?bitrate=500000 or mem://NAME";
 
 /// What can go wrong on a bus.
 #[derive(Debug, thiserror::Error)]

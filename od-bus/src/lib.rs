@@ -4,7 +4,8 @@
 //! |---|---|---|---|
 //! | `mem://NAME` | an in-memory bus of this process, shared by name ([`MemoryBus::named`]) | [`LocalEndpoint`] | `tokio::Bus` on the same bus |
 //! | `socketcand://HOST:PORT/CHANNEL` (alias `tcp://`) | a channel of a socketcand server over TCP: a [`Hub`] (ours) or a real socketcand | [`SocketcandClient`] | `tokio::Bus`, reconnecting |
-//! | `socketcan://IFACE` (feature `socketcan`, Linux) | a kernel CAN interface (`can0`, `vcan0`) | `socketcan::SocketCan` | `tokio::Bus` |
+//! | `socketcan://IFACE` (Linux) | a kernel CAN interface (`can0`, `vcan0`): PEAK, Kvaser, candleLight, ... | `socketcan::SocketCan` | `tokio::Bus` |
+//! | `slcan://PORT?bitrate=500000` | an slcan serial adapter (CANable, USBtin, Lawicel) on Linux, Windows, macOS | [`slcan::SlcanPort`] | `tokio::Bus`, reopening the port |
 //!
 //! [`open`] (blocking) and `tokio::Bus::open` (async) take the address; [`BusAddr`] is its
 //! parsed form. Besides these: [`MemoryBus`] for a private bus of a test, [`Hub`] (a
@@ -20,7 +21,8 @@
 //!
 //! Layers, each using only those below it: `frame`, `timestamp`, `queue`; `sink` (the members
 //! of a channel); `wire`; `bus` (channels, in-process endpoints); `socketcand` (the protocol);
-//! `client`, `hub`; `addr`; then the feature-gated `socketcan` and `tokio`.
+//! `client`, `hub`; `slcan` (the protocol, sans I/O, and a blocking endpoint); `addr`; then
+//! `socketcan` (Linux) and the feature-gated `tokio`.
 //!
 //! # Writing a device loop
 //!
@@ -74,7 +76,8 @@ mod frame;
 mod hub;
 mod queue;
 mod sink;
-#[cfg(all(feature = "socketcan", target_os = "linux"))]
+pub mod slcan;
+#[cfg(target_os = "linux")]
 pub mod socketcan;
 pub mod socketcand;
 mod timestamp;

@@ -136,7 +136,7 @@ enum Tx {
         shared: Arc<TcpShared>,
         _stop: Arc<StopGuard>,
     },
-    #[cfg(all(feature = "socketcan", target_os = "linux"))]
+    #[cfg(target_os = "linux")]
     SocketCan(Arc<socketcan::tokio::CanSocket>, Arc<str>),
 }
 
@@ -147,7 +147,7 @@ enum Rx {
         shared: Arc<TcpShared>,
         _stop: Arc<StopGuard>,
     },
-    #[cfg(all(feature = "socketcan", target_os = "linux"))]
+    #[cfg(target_os = "linux")]
     SocketCan(Arc<socketcan::tokio::CanSocket>, Arc<str>),
 }
 
@@ -231,7 +231,7 @@ impl BusSender {
                 Ok(())
             }
             Tx::Socketcand { shared, .. } => shared.send(frame).await,
-            #[cfg(all(feature = "socketcan", target_os = "linux"))]
+            #[cfg(target_os = "linux")]
             Tx::SocketCan(socket, interface) => socket
                 .write_frame(crate::socketcan::to_socketcan(&frame))
                 .await
@@ -273,7 +273,7 @@ impl BusReceiver {
                 Err(mpsc::error::TryRecvError::Empty) => Ok(None),
                 Err(mpsc::error::TryRecvError::Disconnected) => Err(TransportError::Closed),
             },
-            #[cfg(all(feature = "socketcan", target_os = "linux"))]
+            #[cfg(target_os = "linux")]
             Rx::SocketCan(..) => Ok(None),
         }
     }
@@ -292,7 +292,7 @@ impl BusReceiver {
                 }
             },
             Rx::Socketcand { frames, .. } => frames.recv().await.ok_or(TransportError::Closed),
-            #[cfg(all(feature = "socketcan", target_os = "linux"))]
+            #[cfg(target_os = "linux")]
             Rx::SocketCan(socket, interface) => loop {
                 let frame = socket
                     .read_frame()
@@ -313,7 +313,7 @@ impl BusReceiver {
         match &self.inner {
             Rx::Memory(member) => member.inbox.dropped.load(Ordering::Relaxed),
             Rx::Socketcand { shared, .. } => shared.lost(),
-            #[cfg(all(feature = "socketcan", target_os = "linux"))]
+            #[cfg(target_os = "linux")]
             Rx::SocketCan(..) => 0,
         }
     }
@@ -653,7 +653,7 @@ impl ConnectionTask {
 
 // ---- SocketCAN ----
 
-#[cfg(all(feature = "socketcan", target_os = "linux"))]
+#[cfg(target_os = "linux")]
 fn open_socketcan(interface: &str) -> Result<Bus, TransportError> {
     let socket =
         socketcan::tokio::CanSocket::open(interface).map_err(|e| crate::socketcan::open_error(interface, e))?;
@@ -667,7 +667,7 @@ fn open_socketcan(interface: &str) -> Result<Bus, TransportError> {
     })
 }
 
-#[cfg(not(all(feature = "socketcan", target_os = "linux")))]
+#[cfg(not(target_os = "linux"))]
 fn open_socketcan(interface: &str) -> Result<Bus, TransportError> {
     Err(crate::addr::unavailable(interface))
 }

@@ -5,7 +5,7 @@ use od_bus::{BusAddr, Endpoint, MemoryBus, TransportError};
 use proptest::prelude::*;
 
 /// The accepted forms, as every error message must name them.
-const FORMS: &str = "socketcand://HOST:PORT/CHANNEL, socketcan://IFACE or mem://NAME";
+const FORMS: &str = "socketcand://HOST:PORT/CHANNEL, socketcan://IFACE, slcan://PORT?bitrate=500000 or mem://NAME";
 
 /// Printable ASCII without the characters an address gives meaning to or forbids.
 fn word(max: usize) -> impl Strategy<Value = String> {
@@ -26,6 +26,13 @@ fn any_addr() -> impl Strategy<Value = BusAddr> {
         (host(), any::<u16>(), word(64)).prop_map(|(host, port, channel)| BusAddr::Socketcand { host, port, channel }),
         word(15).prop_map(|interface| BusAddr::SocketCan { interface }),
         prop_oneof![Just(String::new()), word(64)].prop_map(|name| BusAddr::Memory { name }),
+        (
+            prop_oneof![Just("/dev/ttyACM0".to_owned()), Just("COM4".to_owned()), word(40), word(20).prop_map(|w| format!("/dev/{w}"))],
+            proptest::sample::select(&od_bus::slcan::BITRATES[..]),
+            1u32..4_000_000,
+            any::<bool>(),
+        )
+            .prop_map(|(port, bitrate, serial_baud, listen_only)| BusAddr::Slcan { port, bitrate, serial_baud, listen_only }),
     ]
 }
 
@@ -50,6 +57,20 @@ proptest! {
                 a
             }
             BusAddr::SocketCan { interface } => vec![format!("socketcan:{interface}")],
+            BusAddr::Slcan { port, bitrate, serial_baud, listen_only } => {
+                // slcan: for slcan://, the options in any order, defaults left out.
+                let mut options = vec![format!("serial={serial_baud}")];
+                if *listen_only {
+                    options.push("listen-only=true".into());
+                }
+                if *bitrate == 500_000 {
+                    vec![format!("slcan:{port}?{}", options.join("&"))]
+                } else {
+                    options.push(format!("bitrate={bitrate}"));
+                    options.reverse();
+                    vec![format!("slcan:{port}?{}", options.join("&"))]
+                }
+            }
             BusAddr::Memory { .. } => vec![],
         };
         for alias in aliases {
@@ -69,7 +90,7 @@ proptest! {
 
     #[test]
     fn scheme_like_garbage_never_panics(
-        scheme in prop_oneof![Just("socketcand://"), Just("tcp://"), Just("socketcan:"), Just("socketcan://"), Just("mem://")],
+        scheme in prop_oneof![Just("socketcand://"), Just("tcp://"), Just("socketcan:"), Just("socketcan://"), Just("mem://"), Just("slcan://"), Just("slcan://COM4?")],
         rest in proptest::collection::vec(any::<u8>(), 0..80),
     ) {
         let text = format!("{scheme}{}", String::from_utf8_lossy(&rest));
