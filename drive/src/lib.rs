@@ -4,5 +4,6 @@
 pub mod drives;
 pub mod motion;
 pub mod node;
+pub mod slcan;
 pub mod storage;
 pub mod trace;

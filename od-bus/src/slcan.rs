@@ -536,6 +536,7 @@ impl Session {
                 *invalid += 1;
                 event(Event::Invalid(error));
             }
+            Reply::Version(_) | Reply::Serial(_) => {}
             reply => {
                 if !*acknowledging {
                     *acknowledging = true;

@@ -10,8 +10,13 @@
 //!   (handshake, parsing, formatting). When the connection fails it reconnects in the
 //!   background with backoff ([`Options::reconnect`]); meanwhile [`BusSender::send`] fails with
 //!   [`TransportError::Down`], and [`Bus::link`] shows the link going down and coming back.
-//! * `socketcan://IFACE` (features `socketcan` and `tokio`, Linux) is the `socketcan` crate's
-//!   tokio socket.
+//! * `socketcan://IFACE` (Linux) is the `socketcan` crate's tokio socket.
+//! * `slcan://PORT?bitrate=N` is an slcan adapter on a serial port, served by two threads of
+//!   its own (serial ports have no portable async I/O): one reads and decodes
+//!   ([`slcan::Session`](crate::slcan::Session): status flags polled and bus-off recovered on
+//!   adapters that acknowledge), one writes what the halves send, several frames in one write.
+//!   When the port fails (the adapter was unplugged) the link goes down, and the port is opened
+//!   again with backoff ([`Options::reconnect`]) and set up afresh: [`Bus::link`] shows it.
 //!
 //! ```
 //! # #[tokio::main(flavor = "current_thread")]
@@ -31,7 +36,7 @@
 
 use std::fmt;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
 
 use ::tokio::io::{AsyncReadExt, AsyncWriteExt};
@@ -138,6 +143,7 @@ enum Tx {
     },
     #[cfg(target_os = "linux")]
     SocketCan(Arc<socketcan::tokio::CanSocket>, Arc<str>),
+    Slcan(Arc<SerialGuard>),
 }
 
 enum Rx {
@@ -149,6 +155,10 @@ enum Rx {
     },
     #[cfg(target_os = "linux")]
     SocketCan(Arc<socketcan::tokio::CanSocket>, Arc<str>),
+    Slcan {
+        frames: mpsc::Receiver<CanFrame>,
+        guard: Arc<SerialGuard>,
+    },
 }
 
 impl Bus {
@@ -165,6 +175,10 @@ impl Bus {
             BusAddr::Memory { name } => Ok(Self::attach(&MemoryBus::named(name))),
             BusAddr::Socketcand { host, port, channel } => open_socketcand(host, *port, channel, options).await,
             BusAddr::SocketCan { interface } => open_socketcan(interface),
+            BusAddr::Slcan { port, bitrate, serial_baud, listen_only } => {
+                let setup = crate::slcan::Setup { bitrate: *bitrate, listen_only: *listen_only };
+                open_slcan(port, *serial_baud, setup, options).await
+            }
         }
     }
 
@@ -236,6 +250,7 @@ impl BusSender {
                 .write_frame(crate::socketcan::to_socketcan(&frame))
                 .await
                 .map_err(|e| TransportError::io(format!("cannot send on {interface}"), e)),
+            Tx::Slcan(guard) => guard.0.send(frame).await,
         }
     }
 
@@ -275,6 +290,11 @@ impl BusReceiver {
             },
             #[cfg(target_os = "linux")]
             Rx::SocketCan(..) => Ok(None),
+            Rx::Slcan { frames, .. } => match frames.try_recv() {
+                Ok(frame) => Ok(Some(frame)),
+                Err(mpsc::error::TryRecvError::Empty) => Ok(None),
+                Err(mpsc::error::TryRecvError::Disconnected) => Err(TransportError::Closed),
+            },
         }
     }
 
@@ -303,18 +323,21 @@ impl BusReceiver {
                     return Ok(frame);
                 }
             },
+            Rx::Slcan { frames, .. } => frames.recv().await.ok_or(TransportError::Closed),
         }
     }
 
     /// Frames lost on the way to this receiver so far: its queue was full (memory bus), or the
     /// socketcand hub dropped them because this client read more slowly than the bus ran
-    /// (summed over reconnections). 0 where the transport cannot tell (SocketCAN).
+    /// (summed over reconnections), or an slcan adapter reported overruns (one each: a lower
+    /// bound). 0 where the transport cannot tell (SocketCAN).
     pub fn lost(&self) -> u64 {
         match &self.inner {
             Rx::Memory(member) => member.inbox.dropped.load(Ordering::Relaxed),
             Rx::Socketcand { shared, .. } => shared.lost(),
             #[cfg(target_os = "linux")]
             Rx::SocketCan(..) => 0,
+            Rx::Slcan { guard, .. } => guard.0.overruns.load(Ordering::Relaxed),
         }
     }
 
@@ -670,4 +693,278 @@ fn open_socketcan(interface: &str) -> Result<Bus, TransportError> {
 #[cfg(not(target_os = "linux"))]
 fn open_socketcan(interface: &str) -> Result<Bus, TransportError> {
     Err(crate::addr::unavailable(interface))
+}
+
+// ---- slcan ----
+
+/// What the halves of an slcan bus and its two threads share.
+struct SerialShared {
+    /// To the writer thread.
+    out: mpsc::Sender<Out>,
+    link: watch::Sender<LinkState>,
+    /// Both halves are gone: the threads close the channel (`C`) and end.
+    stop: AtomicBool,
+    /// A write failed: the reader gives the port up and opens it again.
+    broken: AtomicBool,
+    overruns: AtomicU64,
+}
+
+/// What the writer thread writes.
+enum Out {
+    Frame(CanFrame),
+    /// Commands of the session (status polls, bus-off recovery, the closing `C`).
+    Raw(Vec<u8>),
+}
+
+/// Held by both halves; when the last one goes, the threads stop.
+struct SerialGuard(Arc<SerialShared>);
+
+impl Drop for SerialGuard {
+    fn drop(&mut self) {
+        self.0.stop.store(true, Ordering::SeqCst);
+    }
+}
+
+/// The port the writer writes to; `None` while the link is down.
+type PortSlot = Arc<std::sync::Mutex<Option<Box<dyn serialport::SerialPort>>>>;
+
+impl SerialShared {
+    async fn send(&self, frame: CanFrame) -> Result<(), TransportError> {
+        if let LinkState::Down { reason, .. } = &*self.link.borrow() {
+            return Err(TransportError::Down { reason: reason.clone() });
+        }
+        self.out.send(Out::Frame(frame)).await.map_err(|_| TransportError::Closed)
+    }
+}
+
+/// Opens the port and writes the setup (blocking calls, on tokio's blocking pool).
+async fn open_port(
+    port: &str,
+    serial_baud: u32,
+    setup: crate::slcan::Setup,
+) -> Result<(Box<dyn serialport::SerialPort>, Box<dyn serialport::SerialPort>), TransportError> {
+    let name = port.to_owned();
+    ::tokio::task::spawn_blocking(move || open_port_blocking(&name, serial_baud, setup))
+        .await
+        .map_err(|e| TransportError::Unavailable(format!("opening {port}: {e}")))?
+}
+
+fn open_port_blocking(
+    name: &str,
+    serial_baud: u32,
+    setup: crate::slcan::Setup,
+) -> Result<(Box<dyn serialport::SerialPort>, Box<dyn serialport::SerialPort>), TransportError> {
+    use std::io::Write as _;
+    let reader = crate::slcan::open_serial(name, serial_baud)?;
+    let mut writer =
+        reader.try_clone().map_err(|e| TransportError::io(format!("cannot use {name}"), std::io::Error::from(e)))?;
+    let mut commands = Vec::with_capacity(32);
+    setup.open_commands(&mut commands);
+    writer
+        .write_all(&commands)
+        .and_then(|()| writer.flush())
+        .map_err(|e| TransportError::io(format!("cannot write to {name}"), e))?;
+    Ok((reader, writer))
+}
+
+async fn open_slcan(
+    port: &str,
+    serial_baud: u32,
+    setup: crate::slcan::Setup,
+    options: &Options,
+) -> Result<Bus, TransportError> {
+    if crate::slcan::bitrate_code(setup.bitrate).is_none() {
+        return Err(TransportError::Unavailable(crate::slcan::bitrate_error(setup.bitrate)));
+    }
+    let (reader, writer) = open_port(port, serial_baud, setup).await?;
+    let (link_tx, link) = watch::channel(LinkState::Up { reconnects: 0 });
+    let (out_tx, out_rx) = mpsc::channel(256);
+    let (frames_tx, frames_rx) = mpsc::channel(options.receive_queue.max(1));
+    let shared = Arc::new(SerialShared {
+        out: out_tx,
+        link: link_tx,
+        stop: AtomicBool::new(false),
+        broken: AtomicBool::new(false),
+        overruns: AtomicU64::new(0),
+    });
+    let slot: PortSlot = Arc::new(std::sync::Mutex::new(Some(writer)));
+    let reader_task = SerialReader {
+        shared: Arc::clone(&shared),
+        slot: Arc::clone(&slot),
+        frames: frames_tx,
+        name: port.to_owned(),
+        serial_baud,
+        session: crate::slcan::Session::new(setup),
+        reconnect: options.reconnect,
+    };
+    let writer_shared = Arc::clone(&shared);
+    std::thread::Builder::new()
+        .name(format!("slcan writer {port}"))
+        .spawn(move || write_loop(out_rx, slot, writer_shared))
+        .map_err(|e| TransportError::io("cannot start the slcan writer thread", e))?;
+    std::thread::Builder::new()
+        .name(format!("slcan reader {port}"))
+        .spawn(move || reader_task.run(reader))
+        .map_err(|e| TransportError::io("cannot start the slcan reader thread", e))?;
+    let guard = Arc::new(SerialGuard(shared));
+    Ok(Bus {
+        tx: BusSender { inner: Tx::Slcan(Arc::clone(&guard)), link: link.clone() },
+        rx: BusReceiver { inner: Rx::Slcan { frames: frames_rx, guard }, link },
+    })
+}
+
+/// Writes what the halves send, every frame waiting at the time in one write.
+fn write_loop(mut out: mpsc::Receiver<Out>, slot: PortSlot, shared: Arc<SerialShared>) {
+    use std::io::Write as _;
+    let mut bytes = Vec::with_capacity(4096);
+    let push = |item: Out, bytes: &mut Vec<u8>| match item {
+        Out::Frame(frame) => crate::slcan::encode(&frame, bytes),
+        Out::Raw(raw) => bytes.extend_from_slice(&raw),
+    };
+    while let Some(first) = out.blocking_recv() {
+        bytes.clear();
+        push(first, &mut bytes);
+        while bytes.len() < 4096 {
+            match out.try_recv() {
+                Ok(item) => push(item, &mut bytes),
+                Err(_) => break,
+            }
+        }
+        let mut port = slot.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        // While the link is down the port is gone and what was queued is dropped, as frames
+        // on an unplugged adapter are.
+        if let Some(writer) = port.as_mut()
+            && writer.write_all(&bytes).and_then(|()| writer.flush()).is_err()
+        {
+            *port = None;
+            shared.broken.store(true, Ordering::SeqCst);
+        }
+    }
+}
+
+/// Reads and decodes the port; when it fails, opens it again.
+struct SerialReader {
+    shared: Arc<SerialShared>,
+    slot: PortSlot,
+    frames: mpsc::Sender<CanFrame>,
+    name: String,
+    serial_baud: u32,
+    session: crate::slcan::Session,
+    reconnect: Reconnect,
+}
+
+/// How often the reader looks up from a quiet port (to notice that the bus was dropped).
+const SERIAL_TICK: Duration = Duration::from_millis(50);
+
+impl SerialReader {
+    fn run(mut self, mut port: Box<dyn serialport::SerialPort>) {
+        let mut reconnects = 0u64;
+        loop {
+            let reason = self.read(&mut port);
+            *self.slot.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = None;
+            let Some(reason) = reason else { return };
+            let Reconnect::Backoff { first, max } = self.reconnect else {
+                self.shared.link.send_replace(LinkState::Closed);
+                return;
+            };
+            self.shared.link.send_replace(LinkState::Down { reason, attempts: 0 });
+            let mut delay = first;
+            let mut attempts = 0u32;
+            let (reader, writer) = loop {
+                if !self.sleep(delay) {
+                    return;
+                }
+                attempts = attempts.saturating_add(1);
+                match open_port_blocking(&self.name, self.serial_baud, *self.session.setup()) {
+                    Ok(ports) => break ports,
+                    Err(error) => {
+                        self.shared.link.send_replace(LinkState::Down { reason: error.to_string(), attempts });
+                        delay = delay.saturating_mul(2).min(max.max(first));
+                    }
+                }
+            };
+            port = reader;
+            self.session.restart();
+            self.shared.broken.store(false, Ordering::SeqCst);
+            *self.slot.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = Some(writer);
+            reconnects += 1;
+            self.shared.link.send_replace(LinkState::Up { reconnects });
+        }
+    }
+
+    /// Sleeps `delay` in ticks; false when the bus was dropped meanwhile.
+    fn sleep(&self, delay: Duration) -> bool {
+        let until = std::time::Instant::now() + delay;
+        loop {
+            if self.shared.stop.load(Ordering::SeqCst) {
+                return false;
+            }
+            let left = until.saturating_duration_since(std::time::Instant::now());
+            if left.is_zero() {
+                return true;
+            }
+            std::thread::sleep(left.min(SERIAL_TICK));
+        }
+    }
+
+    /// Reads until the port fails (`Some(why)`) or the bus is dropped (`None`, after writing
+    /// `C` to close the channel).
+    fn read(&mut self, port: &mut Box<dyn serialport::SerialPort>) -> Option<String> {
+        let mut buf = vec![0u8; 4096];
+        let mut frames = Vec::new();
+        let mut commands = Vec::new();
+        if let Err(error) = port.set_timeout(SERIAL_TICK) {
+            return Some(format!("cannot use {}: {error}", self.name));
+        }
+        loop {
+            if self.shared.stop.load(Ordering::SeqCst) {
+                let _ = self.shared.out.try_send(Out::Raw(b"C\r".to_vec()));
+                return None;
+            }
+            if self.shared.broken.load(Ordering::SeqCst) {
+                return Some(format!("cannot write to {} (was the adapter unplugged?)", self.name));
+            }
+            let n = match std::io::Read::read(port, &mut buf) {
+                Ok(0) => return Some(format!("{} was closed (was the adapter unplugged?)", self.name)),
+                Ok(n) => n,
+                Err(e) if matches!(e.kind(), std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock) => 0,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => 0,
+                Err(e) => return Some(format!("cannot read from {} (was the adapter unplugged?): {e}", self.name)),
+            };
+            let now = std::time::Instant::now();
+            let mut bus_off = None;
+            self.session.feed(
+                &buf[..n],
+                now,
+                &mut commands,
+                |frame| frames.push(frame),
+                |event| {
+                    if let crate::slcan::Event::BusOff { flags } = event {
+                        bus_off = Some(flags);
+                    }
+                },
+            );
+            self.shared.overruns.store(self.session.overruns(), Ordering::Relaxed);
+            self.session.poll(now, &mut commands);
+            if !commands.is_empty() && self.shared.out.blocking_send(Out::Raw(std::mem::take(&mut commands))).is_err() {
+                return None;
+            }
+            if let Some(flags) = bus_off {
+                // Seen as a short outage: the channel was closed and opened again.
+                let reconnects = match &*self.shared.link.borrow() {
+                    LinkState::Up { reconnects } => *reconnects,
+                    _ => 0,
+                };
+                self.shared.link.send_replace(LinkState::Down {
+                    reason: format!("bus-off (status flags {flags:02X}h): channel closed and opened again"),
+                    attempts: 1,
+                });
+                self.shared.link.send_replace(LinkState::Up { reconnects: reconnects + 1 });
+            }
+            for frame in frames.drain(..) {
+                // A receiver that was dropped takes nothing; the sender still works.
+                let _ = self.frames.blocking_send(frame);
+            }
+        }
+    }
 }

@@ -10,6 +10,8 @@
 //!               [--max-clients 1024] [--handshake-timeout-ms 5000] [--max-rate 20000] [--bitrate BITS_PER_S]
 //! drive-sim dump --bus socketcand://127.0.0.1:29536/can0 [--count N] [--timeout SECONDS]
 //! drive-sim send --bus socketcand://127.0.0.1:29536/can0 601#4041600000000000 000#0100 ...
+//! drive-sim slcan (--bus socketcand://127.0.0.1:29536/can0 | --device drvi --node-id 2 ...)
+//!               [--firmware canable|lawicel] [--link PATH] [--no-wire]   a simulated slcan adapter
 //! ```
 //!
 //! `run` simulates devices: each `--device` starts a group that the following `--node-id`,
@@ -79,6 +81,10 @@ enum Command {
     /// The main job in process on the virtual clock: NMT, state machine, homing and an absolute
     /// move in physical units through real frames; prints what happened, writes plot and trace.
     Demo(DemoArgs),
+    /// A simulated slcan adapter (a CANable, or a Lawicel CANUSB) on a pseudo-terminal: prints
+    /// `slcan on PATH`; open PATH with od-master (--bus slcan://PATH), python-can's slcan
+    /// interface or slcand. Its bus: a hub (--bus) or devices in this process (--device).
+    Slcan(drive::slcan::SlcanArgs),
 }
 
 #[derive(Debug, Args)]
@@ -268,6 +274,9 @@ fn main() -> ExitCode {
         Command::Dump(args) => run_dump(&args),
         Command::Send(args) => run_send(&args),
         Command::Demo(args) => run_demo(&args),
+        Command::Slcan(args) => Termination::block()
+            .map_err(|e| format!("cannot set up signal handling: {e}"))
+            .and_then(|t| drive::slcan::run(&args, || eprintln!("drive-sim: {}, stopping", t.wait()))),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
