@@ -9,5 +9,6 @@ mod async_memory;
 mod async_socketcand;
 mod hub;
 mod memory;
+mod slcan;
 mod socketcan;
 mod socketcand;
