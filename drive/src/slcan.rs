@@ -237,10 +237,11 @@ fn host_side(
         let n = match std::io::Read::read(&mut master, &mut buf) {
             Ok(n) => n,
             Err(e) if matches!(e.kind(), std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock) => 0,
-            Err(_) => {
+            Err(e) => {
                 // No host has the terminal open (a hang-up): the adapter resets, as one
                 // unplugged and plugged in again does, and waits for the next host.
                 if connected {
+                    eprintln!("slcan adapter: the host closed the terminal ({e}); channel closed");
                     connected = false;
                     let mut s = lock(&state);
                     s.open = false;

@@ -288,6 +288,7 @@ fn not_regular(m: &std::fs::Metadata) -> std::io::Error {
 /// refuses it; a regular file reads the same either way.
 fn open_without_waiting(path: &std::path::Path) -> std::io::Result<std::fs::File> {
     // (`libc::O_NONBLOCK`, by architecture; where it is not known here, opened as before.)
+    #[cfg_attr(not(unix), allow(dead_code))]
     const O_NONBLOCK: Option<i32> = if !cfg!(target_os = "linux") {
         None
     } else if cfg!(any(target_arch = "mips", target_arch = "mips64")) {
