@@ -26,7 +26,9 @@ use cli::value::{encode, encode_typed, show};
 #[derive(Parser, Debug)]
 #[command(name = "od-master", version, about, after_help = AFTER_HELP)]
 struct Args {
-    /// The bus: socketcand://HOST:PORT/CHANNEL, socketcan://IFACE or mem://NAME.
+    /// The bus: socketcand://HOST:PORT/CHANNEL, socketcan://IFACE (Linux), slcan://PORT?bitrate=500000
+    /// (a CANable, USBtin or Lawicel serial adapter: /dev/ttyACM0, COM4, /dev/cu.usbmodem...) or
+    /// mem://NAME.
     #[arg(long, global = true, value_name = "ADDR")]
     bus: Option<String>,
     /// A device description: FILE for the node the command names, NODE=FILE for one node
