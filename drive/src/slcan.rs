@@ -14,6 +14,9 @@
 //!
 //! Unix only (a pseudo-terminal); elsewhere [`Adapter::start`] says so.
 
+// Off Unix only the types and the error are built: the adapter's innards go unused there.
+#![cfg_attr(not(unix), allow(dead_code, unused_imports))]
+
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};

@@ -5,6 +5,8 @@
 //! * `hub/local_to_tcp`: an in-process endpoint (a simulated device) sending to a TCP client
 //!   (the master), the path every device response takes in `drive-sim`.
 //! * `memory_bus/relay`: one endpoint to another on the in-memory bus.
+//! * `slcan/encode`, `slcan/decode`: one SDO frame to its slcan line and back (the ASCII an
+//!   slcan adapter costs the host per frame).
 //!
 //! Criterion reports the throughput in elements (frames) per second. Run with
 //! `cargo bench -p od-bus --bench hub`.
@@ -70,5 +72,32 @@ fn memory_bus(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, hub, memory_bus);
+/// slcan's ASCII, what the serial adapters cost the host per frame beside the port's write:
+/// one 8-byte SDO frame encoded, and its line decoded (the goal: well under 5 µs).
+fn slcan_codec(c: &mut Criterion) {
+    let frame = CanFrame::standard(0x601, &[0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0]).unwrap();
+    let mut group = c.benchmark_group("slcan");
+    group.throughput(Throughput::Elements(1));
+    let mut line = Vec::with_capacity(32);
+    group.bench_function("encode", |b| {
+        b.iter(|| {
+            line.clear();
+            od_bus::slcan::encode(black_box(&frame), &mut line);
+            line.len()
+        })
+    });
+    let mut encoded = Vec::new();
+    od_bus::slcan::encode(&frame, &mut encoded);
+    let mut decoder = od_bus::slcan::Decoder::new();
+    group.bench_function("decode", |b| {
+        b.iter(|| {
+            let mut got = None;
+            decoder.feed(black_box(&encoded), |reply| got = Some(reply));
+            got
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, hub, memory_bus, slcan_codec);
 criterion_main!(benches);
