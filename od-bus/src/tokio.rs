@@ -704,8 +704,10 @@ struct SerialShared {
     link: watch::Sender<LinkState>,
     /// Both halves are gone: the threads close the channel (`C`) and end.
     stop: AtomicBool,
-    /// A write failed: the reader gives the port up and opens it again.
-    broken: AtomicBool,
+    /// A write failed: the reader gives the port up and opens it again. (The writer holds
+    /// this, not the whole: it must not hold a sender of its own channel, which ends when the
+    /// halves and the reader are gone.)
+    broken: Arc<AtomicBool>,
     overruns: AtomicU64,
 }
 
@@ -784,7 +786,7 @@ async fn open_slcan(
         out: out_tx,
         link: link_tx,
         stop: AtomicBool::new(false),
-        broken: AtomicBool::new(false),
+        broken: Arc::new(AtomicBool::new(false)),
         overruns: AtomicU64::new(0),
     });
     let slot: PortSlot = Arc::new(std::sync::Mutex::new(Some(writer)));
@@ -797,10 +799,10 @@ async fn open_slcan(
         session: crate::slcan::Session::new(setup),
         reconnect: options.reconnect,
     };
-    let writer_shared = Arc::clone(&shared);
+    let broken = Arc::clone(&shared.broken);
     std::thread::Builder::new()
         .name(format!("slcan writer {port}"))
-        .spawn(move || write_loop(out_rx, slot, writer_shared))
+        .spawn(move || write_loop(out_rx, slot, broken))
         .map_err(|e| TransportError::io("cannot start the slcan writer thread", e))?;
     std::thread::Builder::new()
         .name(format!("slcan reader {port}"))
@@ -813,8 +815,9 @@ async fn open_slcan(
     })
 }
 
-/// Writes what the halves send, every frame waiting at the time in one write.
-fn write_loop(mut out: mpsc::Receiver<Out>, slot: PortSlot, shared: Arc<SerialShared>) {
+/// Writes what the halves send, every frame waiting at the time in one write; ends when the
+/// halves and the reader are gone (after writing what they left, the reader's closing `C`).
+fn write_loop(mut out: mpsc::Receiver<Out>, slot: PortSlot, broken: Arc<AtomicBool>) {
     use std::io::Write as _;
     let mut bytes = Vec::with_capacity(4096);
     let push = |item: Out, bytes: &mut Vec<u8>| match item {
@@ -837,7 +840,7 @@ fn write_loop(mut out: mpsc::Receiver<Out>, slot: PortSlot, shared: Arc<SerialSh
             && writer.write_all(&bytes).and_then(|()| writer.flush()).is_err()
         {
             *port = None;
-            shared.broken.store(true, Ordering::SeqCst);
+            broken.store(true, Ordering::SeqCst);
         }
     }
 }
@@ -860,9 +863,9 @@ impl SerialReader {
     fn run(mut self, mut port: Box<dyn serialport::SerialPort>) {
         let mut reconnects = 0u64;
         loop {
-            let reason = self.read(&mut port);
+            // Dropped: the writer keeps the port for the closing `C`, then closes it.
+            let Some(reason) = self.read(&mut port) else { return };
             *self.slot.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = None;
-            let Some(reason) = reason else { return };
             let Reconnect::Backoff { first, max } = self.reconnect else {
                 self.shared.link.send_replace(LinkState::Closed);
                 return;
