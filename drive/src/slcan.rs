@@ -386,7 +386,10 @@ fn bus_side(
         let started = std::time::Instant::now();
         let mut busy_until = tokio::time::Instant::now();
         // Holds a frame for its time on the wire; sleeps only when more than a millisecond
-        // ahead (tokio's timers tick in milliseconds), so the average rate is the wire's.
+        // ahead (tokio's timers tick in milliseconds). A sleep overshoots by up to a tick, so
+        // the wire's schedule goes on from where it was (idle time up to `SLACK` back counts),
+        // not from the late wake-up: the average rate is the wire's, not lower.
+        const SLACK: Duration = Duration::from_millis(2);
         let mut hold = |frame: &CanFrame, bitrate: u32| {
             if !wire {
                 return None;
@@ -394,7 +397,7 @@ fn bus_side(
             let now = tokio::time::Instant::now();
             let bits = u64::from(od_bus::wire::frame_bits(frame));
             let length = Duration::from_nanos(bits * 1_000_000_000 / u64::from(bitrate.max(1)));
-            busy_until = busy_until.max(now) + length;
+            busy_until = busy_until.max(now.checked_sub(SLACK).unwrap_or(now)) + length;
             (busy_until > now + Duration::from_millis(1)).then_some(busy_until)
         };
         let mut tick = tokio::time::interval(Duration::from_millis(50));

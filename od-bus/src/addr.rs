@@ -127,15 +127,17 @@ fn parse_slcan(rest: &str) -> Result<BusAddr, &'static str> {
     for option in options.split('&').filter(|o| !o.is_empty()) {
         match option.split_once('=') {
             Some(("bitrate", value)) => {
-                bitrate = value
-                    .parse()
-                    .ok()
-                    .filter(|b| crate::slcan::bitrate_code(*b).is_some())
-                    .ok_or("bitrate must be 10000, 20000, 50000, 100000, 125000, 250000, 500000, 800000 or 1000000")?;
+                bitrate =
+                    value.parse().ok().filter(|b| crate::slcan::bitrate_code(*b).is_some()).ok_or(
+                        "bitrate must be 10000, 20000, 50000, 100000, 125000, 250000, 500000, 800000 or 1000000",
+                    )?;
             }
             Some(("serial", value)) => {
-                serial_baud =
-                    value.parse().ok().filter(|b| *b > 0).ok_or("serial must be the port's speed in baud, such as 115200")?;
+                serial_baud = value
+                    .parse()
+                    .ok()
+                    .filter(|b| *b > 0)
+                    .ok_or("serial must be the port's speed in baud, such as 115200")?;
             }
             None if option == "listen-only" => listen_only = true,
             Some(("listen-only", "true" | "1")) => listen_only = true,
@@ -301,7 +303,10 @@ mod tests {
             ("socketcand://h:007/c", "socketcand://h:7/c"),
             ("socketcan:vcan0", "socketcan://vcan0"),
             ("slcan:COM4", "slcan://COM4?bitrate=500000"),
-            ("slcan:///dev/ttyACM0?listen-only=1&serial=9600", "slcan:///dev/ttyACM0?bitrate=500000&serial=9600&listen-only"),
+            (
+                "slcan:///dev/ttyACM0?listen-only=1&serial=9600",
+                "slcan:///dev/ttyACM0?bitrate=500000&serial=9600&listen-only",
+            ),
         ] {
             assert_eq!(alias.parse::<BusAddr>().unwrap().to_string(), canonical);
         }
@@ -337,10 +342,7 @@ mod tests {
                 "bitrate must be 10000, 20000, 50000, 100000, 125000, 250000, 500000, 800000 or 1000000",
             ),
             ("slcan://COM4?serial=0", "serial must be the port's speed in baud, such as 115200"),
-            (
-                "slcan://COM4?speed=1",
-                "unknown slcan option: the options are bitrate=N, serial=BAUD and listen-only",
-            ),
+            ("slcan://COM4?speed=1", "unknown slcan option: the options are bitrate=N, serial=BAUD and listen-only"),
         ] {
             let err = bad.parse::<BusAddr>().unwrap_err();
             assert_eq!(err.reason(), reason, "{bad:?}");

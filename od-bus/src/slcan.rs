@@ -827,7 +827,10 @@ mod tests {
         }
         let mut long = vec![b't'; 500];
         long.extend_from_slice(b"\rt701105\r");
-        assert_eq!(replies(&long), [Reply::Invalid(LineError::Overlong), Reply::Frame { frame: good, timestamp: None }]);
+        assert_eq!(
+            replies(&long),
+            [Reply::Invalid(LineError::Overlong), Reply::Frame { frame: good, timestamp: None }]
+        );
     }
 
     #[test]

@@ -27,12 +27,22 @@ fn any_addr() -> impl Strategy<Value = BusAddr> {
         word(15).prop_map(|interface| BusAddr::SocketCan { interface }),
         prop_oneof![Just(String::new()), word(64)].prop_map(|name| BusAddr::Memory { name }),
         (
-            prop_oneof![Just("/dev/ttyACM0".to_owned()), Just("COM4".to_owned()), word(40), word(20).prop_map(|w| format!("/dev/{w}"))],
+            prop_oneof![
+                Just("/dev/ttyACM0".to_owned()),
+                Just("COM4".to_owned()),
+                word(40),
+                word(20).prop_map(|w| format!("/dev/{w}"))
+            ],
             proptest::sample::select(&od_bus::slcan::BITRATES[..]),
             1u32..4_000_000,
             any::<bool>(),
         )
-            .prop_map(|(port, bitrate, serial_baud, listen_only)| BusAddr::Slcan { port, bitrate, serial_baud, listen_only }),
+            .prop_map(|(port, bitrate, serial_baud, listen_only)| BusAddr::Slcan {
+                port,
+                bitrate,
+                serial_baud,
+                listen_only
+            }),
     ]
 }
 

@@ -121,7 +121,8 @@ async fn over_a_canable_the_master_scans_reads_writes_and_commands_nmt() {
 }
 
 /// A home and a move of the DRVI through a Lawicel adapter (acknowledgements, status flags
-/// polled), checked against 6064h; the adapter's replies never reach the master as frames.
+/// polled), checked against 6064h; the adapter's replies never reach the master as frames;
+/// then a bus-off, recovered by C and O.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn over_a_lawicel_adapter_a_drive_homes_and_moves() {
     let rig = Rig::start(&[(DeviceKind::Drvi, 2)], Firmware::Lawicel);
@@ -133,6 +134,18 @@ async fn over_a_lawicel_adapter_a_drive_homes_and_moves() {
     assert_eq!((home, at), (0, 3_600));
     assert_eq!(axis.node().read::<i32>(0x6064, 0).await.unwrap(), 3_600);
     assert!(rig.adapter.is_open());
+    // The controller goes bus-off: the status flags say so at the next poll, the bus closes
+    // and opens the channel (seen as a short outage), and transfers go on.
+    let mut link = bus.link();
+    rig.adapter.bus_off();
+    tokio::time::timeout(
+        Duration::from_secs(5),
+        link.wait_for(|s| matches!(s, od_bus::tokio::LinkState::Up { reconnects: 1 })),
+    )
+    .await
+    .expect("recovered from bus-off in time")
+    .unwrap();
+    assert_eq!(axis.node().read::<i32>(0x6064, 0).await.unwrap(), 3_600);
 }
 
 /// The adapter unplugged and plugged in again under the same name: the master's link goes
@@ -159,15 +172,21 @@ async fn an_adapter_unplugged_and_plugged_in_again_carries_the_next_transfer() {
     assert_eq!(drive.read::<u32>(0x1000, 0).await.unwrap() & 0xFFFF, 402);
     let mut link_state = bus.link();
     adapter.stop();
-    tokio::time::timeout(Duration::from_secs(5), link_state.wait_for(|s| matches!(s, od_bus::tokio::LinkState::Down { .. })))
-        .await
-        .expect("link down in time")
-        .unwrap();
+    tokio::time::timeout(
+        Duration::from_secs(5),
+        link_state.wait_for(|s| matches!(s, od_bus::tokio::LinkState::Down { .. })),
+    )
+    .await
+    .expect("link down in time")
+    .unwrap();
     let _adapter = Adapter::start(Upstream::Memory(bus_side), &options).unwrap();
-    tokio::time::timeout(Duration::from_secs(10), link_state.wait_for(|s| matches!(s, od_bus::tokio::LinkState::Up { reconnects: 1 })))
-        .await
-        .expect("link up in time")
-        .unwrap();
+    tokio::time::timeout(
+        Duration::from_secs(10),
+        link_state.wait_for(|s| matches!(s, od_bus::tokio::LinkState::Up { reconnects: 1 })),
+    )
+    .await
+    .expect("link up in time")
+    .unwrap();
     assert_eq!(drive.read::<u32>(0x1000, 0).await.unwrap() & 0xFFFF, 402);
     stop.store(true, Ordering::SeqCst);
     devices.join().unwrap();
