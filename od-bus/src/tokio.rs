@@ -727,6 +727,9 @@ impl Drop for SerialGuard {
     }
 }
 
+/// A serial port opened twice: the reader's handle and the writer's.
+type PortPair = (Box<dyn serialport::SerialPort>, Box<dyn serialport::SerialPort>);
+
 /// The port the writer writes to; `None` while the link is down.
 type PortSlot = Arc<std::sync::Mutex<Option<Box<dyn serialport::SerialPort>>>>;
 
@@ -744,7 +747,7 @@ async fn open_port(
     port: &str,
     serial_baud: u32,
     setup: crate::slcan::Setup,
-) -> Result<(Box<dyn serialport::SerialPort>, Box<dyn serialport::SerialPort>), TransportError> {
+) -> Result<PortPair, TransportError> {
     let name = port.to_owned();
     ::tokio::task::spawn_blocking(move || open_port_blocking(&name, serial_baud, setup))
         .await
@@ -755,7 +758,7 @@ fn open_port_blocking(
     name: &str,
     serial_baud: u32,
     setup: crate::slcan::Setup,
-) -> Result<(Box<dyn serialport::SerialPort>, Box<dyn serialport::SerialPort>), TransportError> {
+) -> Result<PortPair, TransportError> {
     use std::io::Write as _;
     let reader = crate::slcan::open_serial(name, serial_baud)?;
     let mut writer =
