@@ -18,6 +18,12 @@ if [ -z "${EDS_CORPUS_DIR:-}" ] && [ -d "$root/../shared/eds-corpus" ]; then
   export EDS_CORPUS_DIR="$root/../shared/eds-corpus"
 fi
 
+# A CI run builds everything once from nothing: incremental compilation's caches cost time to
+# write there and are never read again. A local run keeps them.
+if [ -n "${CI:-}" ]; then
+  export CARGO_INCREMENTAL=0
+fi
+
 step "Python venv (python-canopen, python-can, pytest)"
 PYTHON=$("$root/scripts/venv.sh")
 export ODGEN_PYTHON="$PYTHON"
