@@ -9,8 +9,15 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
 
 # Each step says when it starts, in seconds since the script started.
-step() { printf '\n==> [%4ss] %s\n' "$SECONDS" "$*"; }
-trap 'printf "\n==> [%4ss] done (exit %s)\n" "$SECONDS" "$?"' EXIT
+# With the CPU time the commands run so far have taken (user + system, all cores): on a busy
+# machine the wall time says little, the CPU time still says where the time goes.
+cpu_file=$(mktemp)
+cpu() {
+  times >"$cpu_file" # in this shell: `times` in a subshell counts none of its children
+  cpu_s=$(awk 'END { split($1, u, "m"); split($2, s, "m"); printf "%.0f", u[1] * 60 + u[2] + s[1] * 60 + s[2] }' "$cpu_file")
+}
+step() { cpu; printf '\n==> [%4ss, cpu %ss] %s\n' "$SECONDS" "$cpu_s" "$*"; }
+trap 'rc=$?; cpu; printf "\n==> [%4ss, cpu %ss] done (exit %s)\n" "$SECONDS" "$cpu_s" "$rc"; rm -f "$cpu_file"' EXIT
 
 # The public EDS corpus lives beside the repository (../shared/eds-corpus) on the project's
 # machines; the corpus tests say they are skipped when it is absent.
