@@ -722,6 +722,8 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
         let comm = if dir == Direction::Receive { 0x1400 + n } else { 0x1800 + n };
         let cur = read_or(&self.od, comm, 1, 0x8000_0000);
         let valid = cur & 0x8000_0000 == 0;
+        // The device's rule (a constant): must the PDO be invalid to change its mapping or CAN-ID?
+        let locked = valid && OD::PDO_REMAPPING.needs_invalid_pdo();
         if !mapping {
             match sub {
                 1 if data.len() == 4 => {
@@ -731,7 +733,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
                     }
                     if v & 0x8000_0000 == 0 {
                         let id = (v & 0x7FF) as u16;
-                        if (valid && id != (cur & 0x7FF) as u16) || restricted(id) {
+                        if (locked && id != (cur & 0x7FF) as u16) || restricted(id) {
                             return Err(AbortCode::INVALID_VALUE);
                         }
                     }
@@ -751,7 +753,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
             }
             return Ok(());
         }
-        if valid {
+        if locked {
             return Err(AbortCode::UNSUPPORTED_ACCESS);
         }
         if sub == 0 {

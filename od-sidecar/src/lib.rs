@@ -95,6 +95,14 @@
 //! [store]
 //! objects = ["0x6081", "0x6083", "0x2001sub1"]
 //!
+//! # When a master may change a PDO's mapping and CAN-ID: "cia301" (the default: only while
+//! # the PDO is invalid, COB-ID bit 31) or "while-valid" (sub-index 0 = 0 deactivates the PDO,
+//! # the entries are written, sub-index 0 = n activates it; the CAN-ID of a valid PDO may
+//! # change). The generated dictionary carries it (`ObjectDictionary::PDO_REMAPPING`).
+//! [pdo]
+//! remapping = "cia301"
+//! source = "6.3.2.20"
+//!
 //! [[decision]]
 //! object = "0x2001"
 //! source = "Table 6.19"
@@ -147,6 +155,9 @@ pub struct Sidecar {
     /// What 1010h "save" stores.
     #[serde(default)]
     pub store: Store,
+    /// How the device lets a master reconfigure its PDOs.
+    #[serde(default)]
+    pub pdo: Pdo,
     /// Transcription decisions, one per line of reasoning.
     #[serde(default, rename = "decision")]
     pub decisions: Vec<Decision>,
@@ -689,6 +700,32 @@ pub struct Store {
     /// Manual reference and remarks.
     #[serde(default)]
     pub note: Option<String>,
+}
+
+/// `[pdo]`: how the device lets a master reconfigure its PDOs.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Pdo {
+    /// When a PDO's mapping and CAN-ID may be written (`od_runtime::pdo::Remapping`).
+    #[serde(default)]
+    pub remapping: Remapping,
+    /// Manual reference.
+    #[serde(default)]
+    pub source: Option<String>,
+}
+
+/// `[pdo] remapping`: when a master may change a PDO's mapping and CAN-ID.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Remapping {
+    /// `"cia301"`: only while the PDO is invalid (COB-ID bit 31 set), as CiA 301 says.
+    #[default]
+    #[serde(rename = "cia301")]
+    Cia301,
+    /// `"while-valid"`: the PDO may stay valid; sub-index 0 = 0 deactivates it, the entries
+    /// may then be written, sub-index 0 = n activates it again, and a valid PDO's CAN-ID may
+    /// change (the Kollmorgen AKD).
+    #[serde(rename = "while-valid")]
+    WhileValid,
 }
 
 /// One transcription decision.

@@ -94,21 +94,6 @@ fn bytes(text: &str) -> Vec<u8> {
     text.split_whitespace().skip(1).map(|w| u8::from_str_radix(w, 16).unwrap()).collect()
 }
 
-/// CiA 301 lets a PDO mapping change only while the PDO is invalid (COB-ID bit 31), and
-/// od-runtime refuses it otherwise (0601 0000h). The listings of 7.2.1.5 to 7.2.2.1 remap valid
-/// PDOs (the manual's firmware accepted that); 7.2.2.2 stops the PDO first ("Arrestare la
-/// possibile trasmissione di RPDO2") and starts it again after. The replays do as 7.2.2.2
-/// does around each remapping: `stop_pdo` before, `start_pdo` after.
-fn stop_pdo(m: &mut Master, id: u8, comm: u16) {
-    let cob = m.read_u32(id, comm, 1).unwrap();
-    m.write_u32(id, comm, 1, cob | 0x8000_0000).unwrap();
-}
-
-fn start_pdo(m: &mut Master, id: u8, comm: u16) {
-    let cob = m.read_u32(id, comm, 1).unwrap();
-    m.write_u32(id, comm, 1, cob & !0x8000_0000).unwrap();
-}
-
 /// `value` is `want` to within one unit of the 1000:1 scaling (606Ch: the axis counts 2^20
 /// per turn, finer than the user unit, so VL.FB shows the rounding in its decimals).
 fn about(value: i64, want: i64) {
@@ -125,6 +110,10 @@ fn resolution_10000(m: &mut Master, id: u8) {
 
 // =============================================================================================
 // Chapter 7.2.1: the configuration examples, frame by frame (node 3).
+//
+// The listings remap PDOs that stay valid (sub 0 = 0, the entries, sub 0 = n, COB-ID bit 31
+// never set), and so do the replays: the AKD's PDO rule (sidecar `[pdo] remapping =
+// "while-valid"`, 6.3.1.2), carried by the generated dictionary to od-runtime.
 
 /// 7.2.1.2: the state machine by SDO: 0240h after power-up, 0233h after shutdown and switch on.
 #[test]
@@ -203,18 +192,14 @@ fn example_7_2_1_5_velocity_by_pdo() {
     let mut m = one(3);
     resolution_10000(&mut m, 3);
     x(&mut m, "603 2F 60 60 00 03 00 00 00", "583 60 60 60 00 00 00 00 00");
-    stop_pdo(&mut m, 3, 0x1400);
     x(&mut m, "603 2F 00 16 00 00 00 00 00", "583 60 00 16 00 00 00 00 00");
     x(&mut m, "603 23 00 16 01 20 00 FF 60", "583 60 00 16 01 00 00 00 00");
     x(&mut m, "603 2F 00 16 00 01 00 00 00", "583 60 00 16 00 00 00 00 00");
-    start_pdo(&mut m, 3, 0x1400);
-    stop_pdo(&mut m, 3, 0x1800);
     x(&mut m, "603 2F 00 1A 00 00 00 00 00", "583 60 00 1A 00 00 00 00 00");
     x(&mut m, "603 23 00 1A 01 20 00 64 60", "583 60 00 1A 01 00 00 00 00");
     // The listing comments 606Ch as a position: it is the velocity actual value.
     x(&mut m, "603 23 00 1A 02 20 00 6C 60", "583 60 00 1A 02 00 00 00 00");
     x(&mut m, "603 2F 00 1A 00 02 00 00 00", "583 60 00 1A 00 00 00 00 00");
-    start_pdo(&mut m, 3, 0x1800);
     disable_unused_pdos(&mut m);
     put(&mut m, "000 01 03");
     got(&mut m, 0x183);
@@ -242,16 +227,12 @@ fn example_7_2_1_5_velocity_by_pdo() {
 fn example_7_2_1_6_torque_by_pdo() {
     let mut m = one(3);
     x(&mut m, "603 2F 60 60 00 04 00 00 00", "583 60 60 60 00 00 00 00 00");
-    stop_pdo(&mut m, 3, 0x1400);
     x(&mut m, "603 2F 00 16 00 00 00 00 00", "583 60 00 16 00 00 00 00 00");
     x(&mut m, "603 23 00 16 01 10 00 71 60", "583 60 00 16 01 00 00 00 00");
     x(&mut m, "603 2F 00 16 00 01 00 00 00", "583 60 00 16 00 00 00 00 00");
-    start_pdo(&mut m, 3, 0x1400);
-    stop_pdo(&mut m, 3, 0x1800);
     x(&mut m, "603 2F 00 1A 00 00 00 00 00", "583 60 00 1A 00 00 00 00 00");
     x(&mut m, "603 23 00 1A 01 10 00 77 60", "583 60 00 1A 01 00 00 00 00");
     x(&mut m, "603 2F 00 1A 00 01 00 00 00", "583 60 00 1A 00 00 00 00 00");
-    start_pdo(&mut m, 3, 0x1800);
     disable_unused_pdos(&mut m);
     put(&mut m, "000 01 03");
     enable_by_sdo(&mut m);
@@ -303,25 +284,19 @@ fn example_7_2_1_7_homing_by_sdo() {
 fn example_7_2_1_8_profile_position() {
     let mut m = one(3);
     // RPDO2 = 607Ah + 6081h. "2F .. 00 00 00 01": only the first data byte counts for 2F.
-    stop_pdo(&mut m, 3, 0x1401);
     x(&mut m, "603 2F 01 16 00 00 00 00 01", "583 60 01 16 00 00 00 00 00");
     x(&mut m, "603 23 01 16 01 20 00 7A 60", "583 60 01 16 01 00 00 00 00");
     x(&mut m, "603 23 01 16 02 20 00 81 60", "583 60 01 16 02 00 00 00 00");
     x(&mut m, "603 2F 01 16 00 02 00 00 00", "583 60 01 16 00 00 00 00 00");
-    start_pdo(&mut m, 3, 0x1401);
     // TPDO1 = 6041h.
-    stop_pdo(&mut m, 3, 0x1800);
     x(&mut m, "603 2F 00 1A 00 00 00 00 01", "583 60 00 1A 00 00 00 00 00");
     x(&mut m, "603 23 00 1A 01 10 00 41 60", "583 60 00 1A 01 00 00 00 00");
     x(&mut m, "603 2F 00 1A 00 01 00 00 00", "583 60 00 1A 00 00 00 00 00");
-    start_pdo(&mut m, 3, 0x1800);
     // TPDO2 = 6064h + 606Ch, on every SYNC.
-    stop_pdo(&mut m, 3, 0x1801);
     x(&mut m, "603 2F 01 1A 00 00 00 00 01", "583 60 01 1A 00 00 00 00 00");
     x(&mut m, "603 23 01 1A 01 20 00 64 60", "583 60 01 1A 01 00 00 00 00");
     x(&mut m, "603 23 01 1A 02 20 00 6C 60", "583 60 01 1A 02 00 00 00 00");
     x(&mut m, "603 2F 01 1A 00 02 00 00 00", "583 60 01 1A 00 00 00 00 00");
-    start_pdo(&mut m, 3, 0x1801);
     x(&mut m, "603 2F 01 18 02 01 00 00 00", "583 60 01 18 02 00 00 00 00");
     x(&mut m, "603 23 02 18 01 83 03 00 80", "583 60 02 18 01 00 00 00 00");
     x(&mut m, "603 23 03 18 01 83 04 00 80", "583 60 03 18 01 00 00 00 00");
@@ -404,27 +379,21 @@ fn example_7_2_1_9_ascii_channel() {
 #[test]
 fn example_7_2_1_10_sync_test() {
     let mut m = one(3);
-    stop_pdo(&mut m, 3, 0x1401);
     x(&mut m, "603 2F 01 16 00 00 00 00 00", "583 60 01 16 00 00 00 00 00");
     x(&mut m, "603 23 01 16 01 20 00 7A 60", "583 60 01 16 01 00 00 00 00");
     x(&mut m, "603 23 01 16 02 20 00 81 60", "583 60 01 16 02 00 00 00 00");
     x(&mut m, "603 2F 01 16 00 02 00 00 00", "583 60 01 16 00 00 00 00 00");
-    stop_pdo(&mut m, 3, 0x1800);
     x(&mut m, "603 2F 00 1A 00 00 00 00 00", "583 60 00 1A 00 00 00 00 00");
     x(&mut m, "603 23 00 1A 01 20 00 64 60", "583 60 00 1A 01 00 00 00 00");
     x(&mut m, "603 2F 00 1A 00 01 00 00 00", "583 60 00 1A 00 00 00 00 00");
-    start_pdo(&mut m, 3, 0x1800);
     x(&mut m, "603 2F 00 18 02 02 00 00 00", "583 60 00 18 02 00 00 00 00");
-    stop_pdo(&mut m, 3, 0x1801);
     x(&mut m, "603 2F 01 1A 00 00 00 00 00", "583 60 01 1A 00 00 00 00 00");
     x(&mut m, "603 23 01 1A 01 10 00 41 60", "583 60 01 1A 01 00 00 00 00");
     x(&mut m, "603 23 01 1A 02 20 00 02 10", "583 60 01 1A 02 00 00 00 00");
-    // Printed as a write to 1601h sub 0 (accepted: RPDO2, still stopped, has two entries);
-    // the TPDO2 count belongs in 1A01h sub 0.
+    // Printed as a write to 1601h sub 0 (accepted: RPDO2 has two entries); the TPDO2 count
+    // belongs in 1A01h sub 0, written after it (the one frame these replays add).
     x(&mut m, "603 2F 01 16 00 02 00 00 00", "583 60 01 16 00 00 00 00 00");
-    start_pdo(&mut m, 3, 0x1401);
     x(&mut m, "603 2F 01 1A 00 02 00 00 00", "583 60 01 1A 00 00 00 00 00");
-    start_pdo(&mut m, 3, 0x1801);
     x(&mut m, "603 2F 01 18 02 03 00 00 00", "583 60 01 18 02 00 00 00 00");
     // PDOs run in Operational (the listing leaves the NMT start out). The comments name
     // 181h/281h: for node 3 they are 183h/283h.
@@ -476,8 +445,6 @@ fn example_7_2_2_1_two_axes_interpolated_position() {
         m.advance(2000);
     }
     // Axis 1: RPDO2 = 60C1h sub 1 + dummy 2100h.
-    stop_pdo(&mut m, 1, 0x1401);
-    stop_pdo(&mut m, 2, 0x1401);
     x(&mut m, "601 2F 01 16 00 00 00 00 00", "581 60 01 16 00 00 00 00 00");
     x(&mut m, "601 23 01 16 01 20 01 C1 60", "581 60 01 16 01 00 00 00 00");
     x(&mut m, "601 23 01 16 02 20 00 00 21", "581 60 01 16 02 00 00 00 00");
@@ -490,18 +457,16 @@ fn example_7_2_2_1_two_axes_interpolated_position() {
     x(&mut m, "602 23 01 16 02 20 01 C1 60", "582 60 01 16 02 00 00 00 00");
     x(&mut m, "602 2F 01 16 00 02 00 00 00", "582 60 01 16 00 00 00 00 00");
     // "Set the COB-ID identical to axis 1" is printed as 1601h sub 1 (a mapping entry):
-    // the COB-ID is 1401h sub 1 (written valid, so it also starts the PDO again).
+    // the COB-ID is 1401h sub 1. The PDO stays valid and takes the new CAN-ID, as the
+    // listing's answer says (the AKD's PDO rule: sidecar `[pdo]`).
     x(&mut m, "602 23 01 14 01 01 03 00 00", "582 60 01 14 01 00 00 00 00");
-    start_pdo(&mut m, 1, 0x1401);
     for id in [1u8, 2] {
         let (rq, rs) = (0x600 + u32::from(id), 0x580 + u32::from(id));
         // TPDO2 = 6063h + 1002h (commented "dummy").
-        stop_pdo(&mut m, id, 0x1801);
         x(&mut m, &format!("{rq:03X} 2F 01 1A 00 00 00 00 00"), &format!("{rs:03X} 60 01 1A 00 00 00 00 00"));
         x(&mut m, &format!("{rq:03X} 23 01 1A 01 20 00 63 60"), &format!("{rs:03X} 60 01 1A 01 00 00 00 00"));
         x(&mut m, &format!("{rq:03X} 23 01 1A 02 20 00 02 10"), &format!("{rs:03X} 60 01 1A 02 00 00 00 00"));
         x(&mut m, &format!("{rq:03X} 2F 01 1A 00 02 00 00 00"), &format!("{rs:03X} 60 01 1A 00 00 00 00 00"));
-        start_pdo(&mut m, id, 0x1801);
         x(&mut m, &format!("{rq:03X} 2F 01 14 02 01 00 00 00"), &format!("{rs:03X} 60 01 14 02 00 00 00 00"));
         x(&mut m, &format!("{rq:03X} 2F 01 18 02 01 00 00 00"), &format!("{rs:03X} 60 01 18 02 00 00 00 00"));
         x(
