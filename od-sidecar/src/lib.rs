@@ -917,6 +917,10 @@ code = "0x8611"
 manufacturer = 1
 text = "Following error"
 reaction = "quick_stop"
+
+[pdo]
+remapping = "while-valid"
+source = "6.3.1.2"
 "#;
 
     #[test]
@@ -933,6 +937,9 @@ reaction = "quick_stop"
         assert_eq!(s.active_unit_system(|_| Some(1)).unwrap().name, "actuator");
         let masked = Condition { object: "0x36E9".parse().unwrap(), mask: Some(Num(0x10)), equals: Num(0x10) };
         assert!(masked.holds(0x13) && !masked.holds(0x03));
+        assert_eq!(s.pdo, Pdo { remapping: Remapping::WhileValid, source: Some("6.3.1.2".into()) });
+        let plain = GOOD.split("\n[pdo]").next().unwrap();
+        assert_eq!(Sidecar::parse("x.toml", plain).unwrap().pdo.remapping, Remapping::Cia301, "CiA 301's by default");
         let again: Sidecar = toml::from_str(&toml::to_string(&s).unwrap()).unwrap();
         assert_eq!(again, s);
     }
@@ -954,6 +961,7 @@ reaction = "quick_stop"
             ("scale = \"1/100\" }\n\n[[unit_system]]", "scale = \"1/0\" }\n\n[[unit_system]]", "positive"),
             ("\"0x60F4\" = \"var\"", "\"0x60F4\" = \"1000\"", "1000:1"),
             ("unit = \"deg\"", "unit = \"degrees\"", "unknown variant"),
+            ("remapping = \"while-valid\"", "remapping = \"while_valid\"", "while-valid"),
         ] {
             let bad = GOOD.replace(from, to);
             assert_ne!(bad, GOOD, "{from}");
