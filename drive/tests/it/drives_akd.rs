@@ -617,7 +617,8 @@ fn example_7_2_2_2_pvt_by_pdo() {
 /// A PDO of the AKD: (TPDO?, number 1..=4, mapping entries).
 fn akd_mapping() -> impl Strategy<Value = (bool, u16, Vec<u32>)> {
     // The objects the listings map (2100h: the dummy of 7.2.2.1).
-    let rx = vec![0x6040_0010u32, 0x6060_0008, 0x607A_0020, 0x60FF_0020, 0x6081_0020, 0x6071_0010, 0x60C1_0120, 0x2100_0020];
+    let rx =
+        vec![0x6040_0010u32, 0x6060_0008, 0x607A_0020, 0x60FF_0020, 0x6081_0020, 0x6071_0010, 0x60C1_0120, 0x2100_0020];
     let tx = vec![0x6041_0010u32, 0x6064_0020, 0x606C_0020, 0x6063_0020, 0x6077_0010, 0x1002_0020, 0x6061_0008];
     (any::<bool>(), 1u16..=4)
         .prop_flat_map(move |(tpdo, n)| {
