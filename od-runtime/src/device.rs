@@ -722,8 +722,10 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
         let comm = if dir == Direction::Receive { 0x1400 + n } else { 0x1800 + n };
         let cur = read_or(&self.od, comm, 1, 0x8000_0000);
         let valid = cur & 0x8000_0000 == 0;
-        // The device's rule (a constant): must the PDO be invalid to change its mapping or CAN-ID?
-        let locked = valid && OD::PDO_REMAPPING.needs_invalid_pdo();
+        // The device's rule: must the PDO be invalid to change its mapping or CAN-ID? Under
+        // CiA 301's, `locked` is `valid` (the same expression: no code of its own).
+        let free = const { if OD::PDO_REMAPPING.needs_invalid_pdo() { 0 } else { 0x8000_0000 } };
+        let locked = (cur | free) & 0x8000_0000 == 0;
         if !mapping {
             match sub {
                 1 if data.len() == 4 => {
