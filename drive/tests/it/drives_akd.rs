@@ -650,36 +650,64 @@ fn tpdo_length(m: &mut Master, n: u16) -> usize {
     frames[0].frame.data().len()
 }
 
+/// A step of a remapping over SDO.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Step {
+    /// COB-ID bit 31 set (the PDO invalid).
+    Invalidate,
+    /// Mapping sub 0 = 0.
+    Clear,
+    /// Mapping entry k + 1.
+    Entry(usize),
+    /// Mapping sub 0 = n.
+    Count,
+    /// COB-ID bit 31 cleared.
+    Validate,
+}
+
+/// Writes `steps` for PDO `n` (`map` its new mapping, `cob` its CAN-ID).
+fn remap_steps(m: &mut Master, tpdo: bool, n: u16, cob: u32, map: &[u32], steps: &[Step]) {
+    let (comm, idx) = if tpdo { (0x1800 + n - 1, 0x1A00 + n - 1) } else { (0x1400 + n - 1, 0x1600 + n - 1) };
+    for step in steps {
+        let done = match *step {
+            Step::Invalidate => m.write_u32(3, comm, 1, cob | 0x8000_0000),
+            Step::Clear => m.write_u8(3, idx, 0, 0),
+            Step::Entry(k) => m.write_u32(3, idx, k as u8 + 1, map[k]),
+            Step::Count => m.write_u8(3, idx, 0, map.len() as u8),
+            Step::Validate => m.write_u32(3, comm, 1, cob),
+        };
+        assert!(done.is_ok(), "{step:?} of {steps:?}: {done:?}");
+    }
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
 
-    /// CiA 301's sequence (COB-ID bit 31, sub 0 = 0, the entries, sub 0 = n, COB-ID valid)
-    /// and the AKD's (sub 0 = 0, the entries, sub 0 = n), each with the entries written in any
-    /// order, leave the same mapping, the same valid COB-ID and the same PDO on the bus.
+    /// CiA 301's sequence (COB-ID bit 31, sub 0 = 0, the entries, sub 0 = n, COB-ID valid),
+    /// with the COB-ID written invalid and valid again at any point around the mapping steps,
+    /// and the AKD's (sub 0 = 0, the entries, sub 0 = n), each with the entries in any order,
+    /// leave the same mapping, the same valid COB-ID and the same PDO on the bus.
     #[test]
     fn cia_301_and_akd_remapping_in_any_order_give_the_same_mapping(
         (tpdo, n, map) in akd_mapping(),
         order in Just((0..4usize).collect::<Vec<_>>()).prop_shuffle(),
         order_akd in Just((0..4usize).collect::<Vec<_>>()).prop_shuffle(),
+        (off, on) in (0..7usize, 0..7usize),
     ) {
-        let (comm, idx) = if tpdo { (0x1800 + n - 1, 0x1A00 + n - 1) } else { (0x1400 + n - 1, 0x1600 + n - 1) };
-        let count = map.len() as u8;
-        let entries = |order: &[usize]| order.iter().copied().filter(|&k| k < map.len()).collect::<Vec<_>>();
+        let entries = |order: &[usize]| order.iter().copied().filter(|&k| k < map.len()).map(Step::Entry).collect::<Vec<_>>();
+        // CiA 301's steps, then the COB-ID's two writes moved anywhere, bit 31 set first.
+        let mut cia_steps: Vec<Step> = [Step::Clear].into_iter().chain(entries(&order)).chain([Step::Count]).collect();
+        let off = off.min(cia_steps.len());
+        cia_steps.insert(off, Step::Invalidate);
+        let on = (off + 1 + on).min(cia_steps.len());
+        cia_steps.insert(on, Step::Validate);
+        let akd_steps: Vec<Step> = [Step::Clear].into_iter().chain(entries(&order_akd)).chain([Step::Count]).collect();
         let mut cia = one(3);
+        let comm = if tpdo { 0x1800 + n - 1 } else { 0x1400 + n - 1 };
         let cob = cia.read_u32(3, comm, 1).unwrap() & 0x7FF;
-        cia.write_u32(3, comm, 1, cob | 0x8000_0000).unwrap();
-        cia.write_u8(3, idx, 0, 0).unwrap();
-        for k in entries(&order) {
-            cia.write_u32(3, idx, k as u8 + 1, map[k]).unwrap();
-        }
-        cia.write_u8(3, idx, 0, count).unwrap();
-        cia.write_u32(3, comm, 1, cob).unwrap();
+        remap_steps(&mut cia, tpdo, n, cob, &map, &cia_steps);
         let mut akd = one(3);
-        akd.write_u8(3, idx, 0, 0).unwrap();
-        for k in entries(&order_akd) {
-            akd.write_u32(3, idx, k as u8 + 1, map[k]).unwrap();
-        }
-        akd.write_u8(3, idx, 0, count).unwrap();
+        remap_steps(&mut akd, tpdo, n, cob, &map, &akd_steps);
         let want = (cob, map.clone());
         prop_assert_eq!(held(&mut cia, tpdo, n), want.clone());
         prop_assert_eq!(held(&mut akd, tpdo, n), want);
