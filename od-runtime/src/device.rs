@@ -711,7 +711,9 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
 
     // ---- writes ---------------------------------------------------------------------------
 
-    /// The CiA 301 rules for PDO communication and mapping objects, checked before a write.
+    /// The CiA 301 rules for PDO communication and mapping objects, checked before a write;
+    /// whether a valid PDO's mapping and CAN-ID are locked is the dictionary's
+    /// [`ObjectDictionary::PDO_REMAPPING`].
     fn check_pdo_write(&self, index: u16, sub: u8, data: &[u8]) -> Result<(), AbortCode> {
         let (dir, n, mapping) = match index {
             0x1400..=0x15FF => (Direction::Receive, index - 0x1400, false),

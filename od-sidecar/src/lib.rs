@@ -8,8 +8,8 @@
 //! Each device file `devices/<name>.eds` has a sidecar `devices/<name>.toml` beside it. The EDS
 //! says what objects exist and how they are typed; the sidecar says what the numbers *mean*:
 //! physical dimensions and units, which objects rescale them and by which formula, the modes and
-//! homing methods the drive supports, its error and warning tables, what "save" stores, and
-//! every decision taken while transcribing the manual. The code generator (unit scaling) and
+//! homing methods the drive supports, its error and warning tables, what "save" stores, when
+//! a master may remap its PDOs, and every decision taken while transcribing the manual. The code generator (unit scaling) and
 //! the simulated drives (behaviour) read it; nothing is guessed from object names.
 //!
 //! All tables reject unknown keys, so a misspelt key is an error with a line and column.
