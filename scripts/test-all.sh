@@ -31,9 +31,22 @@ if [ -n "${CI:-}" ]; then
   export CARGO_INCREMENTAL=0
 fi
 
-step "Python venv (python-canopen, python-can, pytest)"
-PYTHON=$("$root/scripts/venv.sh")
-export ODGEN_PYTHON="$PYTHON"
+# The venv is made (a minute on a fresh clone, most of it waiting on downloads) while the
+# first cargo steps run; the Rust tests are the first to use it.
+step "Python venv (python-canopen, python-can, pytest), in the background"
+venv_out=$(mktemp)
+"$root/scripts/venv.sh" >"$venv_out" 2>"$venv_out.err" &
+venv_pid=$!
+venv_ready() {
+  if ! wait "$venv_pid"; then
+    echo "scripts/venv.sh failed:" >&2
+    cat "$venv_out.err" >&2
+    exit 1
+  fi
+  cat "$venv_out.err"
+  PYTHON=$(cat "$venv_out")
+  export ODGEN_PYTHON="$PYTHON"
+}
 
 # The library od-master builds without the command line's dependencies and without the code
 # generator (the CLI is the package od-master-cli); proc macros' own dependencies do not count.
@@ -55,6 +68,7 @@ cargo clippy --workspace --all-targets --locked -- -D warnings
 # One build profile only: `cargo test --all-targets` also compiles the benchmarks (in the test
 # profile) and runs each of them once as a smoke test.
 step "cargo test (workspace, all targets)"
+venv_ready
 cargo test --workspace --all-targets --locked --no-fail-fast
 
 # `--all-targets` leaves the doc tests out: the examples in the docs, the crates' READMEs among
