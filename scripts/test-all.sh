@@ -9,8 +9,15 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
 
 # Each step says when it starts, in seconds since the script started.
-step() { printf '\n==> [%4ss] %s\n' "$SECONDS" "$*"; }
-trap 'printf "\n==> [%4ss] done (exit %s)\n" "$SECONDS" "$?"' EXIT
+# With the CPU time the commands run so far have taken (user + system, all cores): on a busy
+# machine the wall time says little, the CPU time still says where the time goes.
+cpu_file=$(mktemp)
+cpu() {
+  times >"$cpu_file" # in this shell: `times` in a subshell counts none of its children
+  cpu_s=$(awk 'END { split($1, u, "m"); split($2, s, "m"); printf "%.0f", u[1] * 60 + u[2] + s[1] * 60 + s[2] }' "$cpu_file")
+}
+step() { cpu; printf '\n==> [%4ss, cpu %ss] %s\n' "$SECONDS" "$cpu_s" "$*"; }
+trap 'rc=$?; cpu; printf "\n==> [%4ss, cpu %ss] done (exit %s)\n" "$SECONDS" "$cpu_s" "$rc"; rm -f "$cpu_file"' EXIT
 
 # The public EDS corpus lives beside the repository (../shared/eds-corpus) on the project's
 # machines; the corpus tests say they are skipped when it is absent.
@@ -18,9 +25,28 @@ if [ -z "${EDS_CORPUS_DIR:-}" ] && [ -d "$root/../shared/eds-corpus" ]; then
   export EDS_CORPUS_DIR="$root/../shared/eds-corpus"
 fi
 
-step "Python venv (python-canopen, python-can, pytest)"
-PYTHON=$("$root/scripts/venv.sh")
-export ODGEN_PYTHON="$PYTHON"
+# A CI run builds everything once from nothing: incremental compilation's caches cost time to
+# write there and are never read again. A local run keeps them.
+if [ -n "${CI:-}" ]; then
+  export CARGO_INCREMENTAL=0
+fi
+
+# The venv is made (a minute on a fresh clone, most of it waiting on downloads) while the
+# first cargo steps run; the Rust tests are the first to use it.
+step "Python venv (python-canopen, python-can, pytest), in the background"
+venv_out=$(mktemp)
+"$root/scripts/venv.sh" >"$venv_out" 2>"$venv_out.err" &
+venv_pid=$!
+venv_ready() {
+  if ! wait "$venv_pid"; then
+    echo "scripts/venv.sh failed:" >&2
+    cat "$venv_out.err" >&2
+    exit 1
+  fi
+  cat "$venv_out.err"
+  PYTHON=$(cat "$venv_out")
+  export ODGEN_PYTHON="$PYTHON"
+}
 
 # The library od-master builds without the command line's dependencies and without the code
 # generator (the CLI is the package od-master-cli); proc macros' own dependencies do not count.
@@ -42,6 +68,7 @@ cargo clippy --workspace --all-targets --locked -- -D warnings
 # One build profile only: `cargo test --all-targets` also compiles the benchmarks (in the test
 # profile) and runs each of them once as a smoke test.
 step "cargo test (workspace, all targets)"
+venv_ready
 cargo test --workspace --all-targets --locked --no-fail-fast
 
 # `--all-targets` leaves the doc tests out: the examples in the docs, the crates' READMEs among

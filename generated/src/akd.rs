@@ -29551,6 +29551,7 @@ Denotation=MOTOR.BRAKEIMM
             heartbeat_consumer: true,
             emcy_history: true,
         };
+        const PDO_REMAPPING: ::od_runtime::pdo::Remapping = ::od_runtime::pdo::Remapping::WhileValid;
         fn entries(&self) -> &'static [::od_runtime::od::EntryInfo] {
             &ENTRIES
         }

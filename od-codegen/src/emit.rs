@@ -1020,13 +1020,15 @@ fn inherent_impl(
 
 /// `ObjectDictionary::SERVICES`: the optional services whose objects the dictionary has (the
 /// rule of `od_runtime::od::Services::of`, which the generated devices' tests hold it to). A
-/// constant, so the runtime links no code for the others.
-fn services(plan: &Plan<'_>) -> TokenStream {
+/// constant, so the runtime links no code for the others. With it, `PDO_REMAPPING` when the
+/// sidecar's `[pdo] remapping` is not CiA 301's (the trait's default).
+fn services(plan: &Plan<'_>, sidecar: Option<&crate::sidecar::Sidecar>) -> TokenStream {
     let has = |index: u16| plan.entries.iter().any(|e| e.index == index);
     // A PDO may be synchronous without 1005h: SYNC then comes on the predefined COB-ID 80h.
     let pdos = plan.entries.iter().any(|e| matches!(e.index, 0x1400..=0x15FF | 0x1800..=0x19FF));
     let (sync, guarding, consumer, history) =
         (has(0x1005) || pdos, has(0x100C) && has(0x100D), has(0x1016), has(0x1003));
+    let remapping = pdo_remapping(sidecar);
     quote! {
         const SERVICES: ::od_runtime::od::Services = ::od_runtime::od::Services {
             sync: #sync,
@@ -1034,6 +1036,18 @@ fn services(plan: &Plan<'_>) -> TokenStream {
             heartbeat_consumer: #consumer,
             emcy_history: #history,
         };
+        #remapping
+    }
+}
+
+/// `ObjectDictionary::PDO_REMAPPING` from the sidecar, nothing for CiA 301's rule (the default).
+fn pdo_remapping(sidecar: Option<&crate::sidecar::Sidecar>) -> TokenStream {
+    use crate::sidecar::Remapping;
+    match sidecar.map(|s| s.pdo.remapping) {
+        None | Some(Remapping::Cia301) => TokenStream::new(),
+        Some(Remapping::WhileValid) => quote! {
+            const PDO_REMAPPING: ::od_runtime::pdo::Remapping = ::od_runtime::pdo::Remapping::WhileValid;
+        },
     }
 }
 
@@ -1136,7 +1150,7 @@ pub(crate) fn dictionary(
     let name_fn = name_fn(names);
     let accessors = accessors(plan, sidecar, parts);
     let inherent = inherent_impl(new_fn, zeroed_fn, real_limits, accessors);
-    let traits = trait_impls(name_fn, services(plan));
+    let traits = trait_impls(name_fn, services(plan, sidecar));
     quote! {
         #struct_item
 

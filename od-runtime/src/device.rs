@@ -711,7 +711,9 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
 
     // ---- writes ---------------------------------------------------------------------------
 
-    /// The CiA 301 rules for PDO communication and mapping objects, checked before a write.
+    /// The CiA 301 rules for PDO communication and mapping objects, checked before a write;
+    /// whether a valid PDO's mapping and CAN-ID are locked is the dictionary's
+    /// [`ObjectDictionary::PDO_REMAPPING`].
     fn check_pdo_write(&self, index: u16, sub: u8, data: &[u8]) -> Result<(), AbortCode> {
         let (dir, n, mapping) = match index {
             0x1400..=0x15FF => (Direction::Receive, index - 0x1400, false),
@@ -722,6 +724,10 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
         let comm = if dir == Direction::Receive { 0x1400 + n } else { 0x1800 + n };
         let cur = read_or(&self.od, comm, 1, 0x8000_0000);
         let valid = cur & 0x8000_0000 == 0;
+        // The device's rule: must the PDO be invalid to change its mapping or CAN-ID? Under
+        // CiA 301's, `locked` is `valid` (the same expression: no code of its own).
+        let free = const { if OD::PDO_REMAPPING.needs_invalid_pdo() { 0 } else { 0x8000_0000 } };
+        let locked = (cur | free) & 0x8000_0000 == 0;
         if !mapping {
             match sub {
                 1 if data.len() == 4 => {
@@ -731,7 +737,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
                     }
                     if v & 0x8000_0000 == 0 {
                         let id = (v & 0x7FF) as u16;
-                        if (valid && id != (cur & 0x7FF) as u16) || restricted(id) {
+                        if (locked && id != (cur & 0x7FF) as u16) || restricted(id) {
                             return Err(AbortCode::INVALID_VALUE);
                         }
                     }
@@ -751,7 +757,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
             }
             return Ok(());
         }
-        if valid {
+        if locked {
             return Err(AbortCode::UNSUPPORTED_ACCESS);
         }
         if sub == 0 {

@@ -613,6 +613,11 @@ pub trait ObjectDictionary {
     /// dictionary's are its EDS's. Default: [`Services::ALL`].
     const SERVICES: Services = Services::ALL;
 
+    /// When a master may change a PDO's mapping and CAN-ID ([`crate::pdo::Remapping`]): a
+    /// generated dictionary's comes from its sidecar (`[pdo] remapping`). Default: CiA 301's.
+    /// A constant, so a firmware links only the rule it keeps.
+    const PDO_REMAPPING: crate::pdo::Remapping = crate::pdo::Remapping::Cia301;
+
     /// Every entry's metadata, sorted by `(index, sub)`.
     fn entries(&self) -> &'static [EntryInfo];
 

@@ -8,8 +8,8 @@
 //! Each device file `devices/<name>.eds` has a sidecar `devices/<name>.toml` beside it. The EDS
 //! says what objects exist and how they are typed; the sidecar says what the numbers *mean*:
 //! physical dimensions and units, which objects rescale them and by which formula, the modes and
-//! homing methods the drive supports, its error and warning tables, what "save" stores, and
-//! every decision taken while transcribing the manual. The code generator (unit scaling) and
+//! homing methods the drive supports, its error and warning tables, what "save" stores, when
+//! a master may remap its PDOs, and every decision taken while transcribing the manual. The code generator (unit scaling) and
 //! the simulated drives (behaviour) read it; nothing is guessed from object names.
 //!
 //! All tables reject unknown keys, so a misspelt key is an error with a line and column.
@@ -95,6 +95,14 @@
 //! [store]
 //! objects = ["0x6081", "0x6083", "0x2001sub1"]
 //!
+//! # When a master may change a PDO's mapping and CAN-ID: "cia301" (the default: only while
+//! # the PDO is invalid, COB-ID bit 31) or "while-valid" (sub-index 0 = 0 deactivates the PDO,
+//! # the entries are written, sub-index 0 = n activates it; the CAN-ID of a valid PDO may
+//! # change). The generated dictionary carries it (`ObjectDictionary::PDO_REMAPPING`).
+//! [pdo]
+//! remapping = "cia301"
+//! source = "6.3.2.20"
+//!
 //! [[decision]]
 //! object = "0x2001"
 //! source = "Table 6.19"
@@ -147,6 +155,9 @@ pub struct Sidecar {
     /// What 1010h "save" stores.
     #[serde(default)]
     pub store: Store,
+    /// How the device lets a master reconfigure its PDOs.
+    #[serde(default)]
+    pub pdo: Pdo,
     /// Transcription decisions, one per line of reasoning.
     #[serde(default, rename = "decision")]
     pub decisions: Vec<Decision>,
@@ -733,6 +744,32 @@ pub struct Store {
     pub note: Option<String>,
 }
 
+/// `[pdo]`: how the device lets a master reconfigure its PDOs.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Pdo {
+    /// When a PDO's mapping and CAN-ID may be written (`od_runtime::pdo::Remapping`).
+    #[serde(default)]
+    pub remapping: Remapping,
+    /// Manual reference.
+    #[serde(default)]
+    pub source: Option<String>,
+}
+
+/// `[pdo] remapping`: when a master may change a PDO's mapping and CAN-ID.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Remapping {
+    /// `"cia301"`: only while the PDO is invalid (COB-ID bit 31 set), as CiA 301 says.
+    #[default]
+    #[serde(rename = "cia301")]
+    Cia301,
+    /// `"while-valid"`: the PDO may stay valid; sub-index 0 = 0 deactivates it, the entries
+    /// may then be written, sub-index 0 = n activates it again, and a valid PDO's CAN-ID may
+    /// change (the Kollmorgen AKD).
+    #[serde(rename = "while-valid")]
+    WhileValid,
+}
+
 /// One transcription decision.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -922,6 +959,10 @@ code = "0x8611"
 manufacturer = 1
 text = "Following error"
 reaction = "quick_stop"
+
+[pdo]
+remapping = "while-valid"
+source = "6.3.1.2"
 "#;
 
     #[test]
@@ -938,6 +979,9 @@ reaction = "quick_stop"
         assert_eq!(s.active_unit_system(|_| Some(1)).unwrap().name, "actuator");
         let masked = Condition { object: "0x36E9".parse().unwrap(), mask: Some(Num(0x10)), equals: Num(0x10) };
         assert!(masked.holds(0x13) && !masked.holds(0x03));
+        assert_eq!(s.pdo, Pdo { remapping: Remapping::WhileValid, source: Some("6.3.1.2".into()) });
+        let plain = GOOD.split("\n[pdo]").next().unwrap();
+        assert_eq!(Sidecar::parse("x.toml", plain).unwrap().pdo.remapping, Remapping::Cia301, "CiA 301's by default");
         let again: Sidecar = toml::from_str(&toml::to_string(&s).unwrap()).unwrap();
         assert_eq!(again, s);
     }
@@ -959,6 +1003,7 @@ reaction = "quick_stop"
             ("scale = \"1/100\" }\n\n[[unit_system]]", "scale = \"1/0\" }\n\n[[unit_system]]", "positive"),
             ("\"0x60F4\" = \"var\"", "\"0x60F4\" = \"1000\"", "1000:1"),
             ("unit = \"deg\"", "unit = \"degrees\"", "unknown variant"),
+            ("remapping = \"while-valid\"", "remapping = \"while_valid\"", "while-valid"),
         ] {
             let bad = GOOD.replace(from, to);
             assert_ne!(bad, GOOD, "{from}");

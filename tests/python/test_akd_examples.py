@@ -4,13 +4,11 @@ python-can bus.
 
 Frames are written as the manual prints them ("603 2B 40 60 00 06 00 00 00"). Where a listing
 has a typo (the decisions of devices/kollmorgen-akd.toml, asserted by devices/tests/it/akd.rs) the
-comment says what was fixed. Two things every listing of 7.2.1.5 to 7.2.2.1 needs besides:
-
-* CiA 301 lets a PDO mapping change only while the PDO is invalid (COB-ID bit 31), and the
-  simulated device refuses it otherwise (abort 0601 0000h); the listings remap valid PDOs, 7.2.2.2
-  stops the PDO first. The replays stop and restart the PDO around a remapping (`stop_pdo`).
-* Where the manual does not say which units the drive was set up with, the replays use the
-  setup 7.2.1.7 names: 10 000 user units (um) per motor turn (6092h sub 1).
+comment says what was fixed. The listings of 7.2.1.5 to 7.2.2.1 remap PDOs that stay valid
+(mapping sub 0 = 0, the entries, sub 0 = n, COB-ID bit 31 never set) and so do the replays: the
+simulated AKD takes a new mapping as its manual says (6.3.1.2; the sidecar's `[pdo] remapping`).
+Where the manual does not say which units the drive was set up with, the replays use the setup
+7.2.1.7 names: 10 000 user units (um) per motor turn (6092h sub 1).
 
 The same listings run in virtual time in drive/tests/it/drives_akd.rs (with the EMCY part of
 7.2.1.10, which needs a simulated over-temperature that the bus cannot provoke).
@@ -102,12 +100,6 @@ class Listing:
         request = f"{0x600 + node:03X} 23 {where} " + " ".join(f"{b:02X}" for b in v)
         self.x(request, f"{0x580 + node:03X} 60 {where} 00 00 00 00")
 
-    def stop_pdo(self, node, comm):
-        self.write32(node, comm, 1, self.read(node, comm, 1) | 0x80000000)
-
-    def start_pdo(self, node, comm):
-        self.write32(node, comm, 1, self.read(node, comm, 1) & 0x7FFFFFFF)
-
     def wait_value(self, node, index, sub, predicate, timeout=5.0):
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
@@ -193,18 +185,14 @@ def test_7_2_1_4_torque_by_sdo(listing):
 def test_7_2_1_5_velocity_by_pdo(listing):
     resolution_10000(listing)
     listing.x("603 2F 60 60 00 03 00 00 00", "583 60 60 60 00 00 00 00 00")
-    listing.stop_pdo(3, 0x1400)
     listing.x("603 2F 00 16 00 00 00 00 00", "583 60 00 16 00 00 00 00 00")
     listing.x("603 23 00 16 01 20 00 FF 60", "583 60 00 16 01 00 00 00 00")
     listing.x("603 2F 00 16 00 01 00 00 00", "583 60 00 16 00 00 00 00 00")
-    listing.start_pdo(3, 0x1400)
-    listing.stop_pdo(3, 0x1800)
     listing.x("603 2F 00 1A 00 00 00 00 00", "583 60 00 1A 00 00 00 00 00")
     listing.x("603 23 00 1A 01 20 00 64 60", "583 60 00 1A 01 00 00 00 00")
     # Commented as a position: 606Ch is the velocity actual value.
     listing.x("603 23 00 1A 02 20 00 6C 60", "583 60 00 1A 02 00 00 00 00")
     listing.x("603 2F 00 1A 00 02 00 00 00", "583 60 00 1A 00 00 00 00 00")
-    listing.start_pdo(3, 0x1800)
     disable_unused_pdos(listing)
     listing.put("000 01 03")
     enable_by_sdo(listing)
@@ -236,16 +224,12 @@ def listing_blocked(start_drive_sim, can_bus, tmp_path):
 def test_7_2_1_6_torque_by_pdo(listing_blocked):
     listing = listing_blocked
     listing.x("603 2F 60 60 00 04 00 00 00", "583 60 60 60 00 00 00 00 00")
-    listing.stop_pdo(3, 0x1400)
     listing.x("603 2F 00 16 00 00 00 00 00", "583 60 00 16 00 00 00 00 00")
     listing.x("603 23 00 16 01 10 00 71 60", "583 60 00 16 01 00 00 00 00")
     listing.x("603 2F 00 16 00 01 00 00 00", "583 60 00 16 00 00 00 00 00")
-    listing.start_pdo(3, 0x1400)
-    listing.stop_pdo(3, 0x1800)
     listing.x("603 2F 00 1A 00 00 00 00 00", "583 60 00 1A 00 00 00 00 00")
     listing.x("603 23 00 1A 01 10 00 77 60", "583 60 00 1A 01 00 00 00 00")
     listing.x("603 2F 00 1A 00 01 00 00 00", "583 60 00 1A 00 00 00 00 00")
-    listing.start_pdo(3, 0x1800)
     disable_unused_pdos(listing)
     listing.put("000 01 03")
     enable_by_sdo(listing)
@@ -282,23 +266,17 @@ def test_7_2_1_7_homing_by_sdo(listing):
 
 
 def test_7_2_1_8_profile_position(listing):
-    listing.stop_pdo(3, 0x1401)
     listing.x("603 2F 01 16 00 00 00 00 01", "583 60 01 16 00 00 00 00 00")
     listing.x("603 23 01 16 01 20 00 7A 60", "583 60 01 16 01 00 00 00 00")
     listing.x("603 23 01 16 02 20 00 81 60", "583 60 01 16 02 00 00 00 00")
     listing.x("603 2F 01 16 00 02 00 00 00", "583 60 01 16 00 00 00 00 00")
-    listing.start_pdo(3, 0x1401)
-    listing.stop_pdo(3, 0x1800)
     listing.x("603 2F 00 1A 00 00 00 00 01", "583 60 00 1A 00 00 00 00 00")
     listing.x("603 23 00 1A 01 10 00 41 60", "583 60 00 1A 01 00 00 00 00")
     listing.x("603 2F 00 1A 00 01 00 00 00", "583 60 00 1A 00 00 00 00 00")
-    listing.start_pdo(3, 0x1800)
-    listing.stop_pdo(3, 0x1801)
     listing.x("603 2F 01 1A 00 00 00 00 01", "583 60 01 1A 00 00 00 00 00")
     listing.x("603 23 01 1A 01 20 00 64 60", "583 60 01 1A 01 00 00 00 00")
     listing.x("603 23 01 1A 02 20 00 6C 60", "583 60 01 1A 02 00 00 00 00")
     listing.x("603 2F 01 1A 00 02 00 00 00", "583 60 01 1A 00 00 00 00 00")
-    listing.start_pdo(3, 0x1801)
     listing.x("603 2F 01 18 02 01 00 00 00", "583 60 01 18 02 00 00 00 00")
     listing.x("603 23 02 18 01 83 03 00 80", "583 60 02 18 01 00 00 00 00")
     listing.x("603 23 03 18 01 83 04 00 80", "583 60 03 18 01 00 00 00 00")
@@ -363,26 +341,20 @@ def test_7_2_1_9_ascii_channel(start_drive_sim, can_bus):
 
 
 def test_7_2_1_10_sync_test(listing):
-    listing.stop_pdo(3, 0x1401)
     listing.x("603 2F 01 16 00 00 00 00 00", "583 60 01 16 00 00 00 00 00")
     listing.x("603 23 01 16 01 20 00 7A 60", "583 60 01 16 01 00 00 00 00")
     listing.x("603 23 01 16 02 20 00 81 60", "583 60 01 16 02 00 00 00 00")
     listing.x("603 2F 01 16 00 02 00 00 00", "583 60 01 16 00 00 00 00 00")
-    listing.stop_pdo(3, 0x1800)
     listing.x("603 2F 00 1A 00 00 00 00 00", "583 60 00 1A 00 00 00 00 00")
     listing.x("603 23 00 1A 01 20 00 64 60", "583 60 00 1A 01 00 00 00 00")
     listing.x("603 2F 00 1A 00 01 00 00 00", "583 60 00 1A 00 00 00 00 00")
-    listing.start_pdo(3, 0x1800)
     listing.x("603 2F 00 18 02 02 00 00 00", "583 60 00 18 02 00 00 00 00")
-    listing.stop_pdo(3, 0x1801)
     listing.x("603 2F 01 1A 00 00 00 00 00", "583 60 01 1A 00 00 00 00 00")
     listing.x("603 23 01 1A 01 10 00 41 60", "583 60 01 1A 01 00 00 00 00")
     listing.x("603 23 01 1A 02 20 00 02 10", "583 60 01 1A 02 00 00 00 00")
-    # Printed as 1601h sub 0; the TPDO2 count is 1A01h sub 0.
+    # Printed as 1601h sub 0 (accepted: RPDO2 has two entries); the TPDO2 count is 1A01h sub 0.
     listing.x("603 2F 01 16 00 02 00 00 00", "583 60 01 16 00 00 00 00 00")
-    listing.start_pdo(3, 0x1401)
     listing.x("603 2F 01 1A 00 02 00 00 00", "583 60 01 1A 00 00 00 00 00")
-    listing.start_pdo(3, 0x1801)
     listing.x("603 2F 01 18 02 03 00 00 00", "583 60 01 18 02 00 00 00 00")
     listing.put("000 01 03", settle=0.1)  # not in the listing: PDOs need Operational
     listing.take(0x183)
@@ -419,8 +391,6 @@ def test_7_2_2_1_two_axes_share_one_rpdo(start_drive_sim, can_bus):
         for cw in ("06", "07", "0F", "1F", "00"):
             lst.x(f"{rq} 2B 40 60 00 {cw} 00 00 00", f"{rs} 60 40 60 00 00 00 00 00")
             time.sleep(0.01)
-    lst.stop_pdo(1, 0x1401)
-    lst.stop_pdo(2, 0x1401)
     lst.x("601 2F 01 16 00 00 00 00 00", "581 60 01 16 00 00 00 00 00")
     lst.x("601 23 01 16 01 20 01 C1 60", "581 60 01 16 01 00 00 00 00")  # set-point
     lst.x("601 23 01 16 02 20 00 00 21", "581 60 01 16 02 00 00 00 00")  # 4-byte dummy
@@ -431,17 +401,15 @@ def test_7_2_2_1_two_axes_share_one_rpdo(start_drive_sim, can_bus):
     lst.x("602 23 01 16 01 20 00 00 21", "582 60 01 16 01 00 00 00 00")
     lst.x("602 23 01 16 02 20 01 C1 60", "582 60 01 16 02 00 00 00 00")
     lst.x("602 2F 01 16 00 02 00 00 00", "582 60 01 16 00 00 00 00 00")
-    # "Same COB-ID as axis 1", printed as 1601h sub 1: it is 1401h sub 1.
+    # "Same COB-ID as axis 1", printed as 1601h sub 1: it is 1401h sub 1, and the valid PDO
+    # takes the new CAN-ID as the listing's answer says.
     lst.x("602 23 01 14 01 01 03 00 00", "582 60 01 14 01 00 00 00 00")
-    lst.start_pdo(1, 0x1401)
     for node in (1, 2):
         rq, rs = f"{0x600 + node:03X}", f"{0x580 + node:03X}"
-        lst.stop_pdo(node, 0x1801)
         lst.x(f"{rq} 2F 01 1A 00 00 00 00 00", f"{rs} 60 01 1A 00 00 00 00 00")
         lst.x(f"{rq} 23 01 1A 01 20 00 63 60", f"{rs} 60 01 1A 01 00 00 00 00")
         lst.x(f"{rq} 23 01 1A 02 20 00 02 10", f"{rs} 60 01 1A 02 00 00 00 00")
         lst.x(f"{rq} 2F 01 1A 00 02 00 00 00", f"{rs} 60 01 1A 00 00 00 00 00")
-        lst.start_pdo(node, 0x1801)
         lst.x(f"{rq} 2F 01 14 02 01 00 00 00", f"{rs} 60 01 14 02 00 00 00 00")
         lst.x(f"{rq} 2F 01 18 02 01 00 00 00", f"{rs} 60 01 18 02 00 00 00 00")
         lst.x(f"{rq} 23 02 18 01 {0x80 + node:02X} 03 00 80", f"{rs} 60 02 18 01 00 00 00 00")
@@ -474,3 +442,51 @@ def test_7_2_2_1_two_axes_share_one_rpdo(start_drive_sim, can_bus):
         status = int.from_bytes(bytes.fromhex("".join(answer.split()[5:9])), "little")
         assert status & (1 << 14), f"power stage enabled: {status:08X}"
         assert status & (1 << 1), f"homed: {status:08X}"
+
+
+def done(request):
+    """The success answer to an SDO download (7.2.2.2 prints the requests only)."""
+    words = request.split()
+    return f"{int(words[0], 16) - 0x80:03X} 60 {words[2]} {words[3]} {words[4]} 00 00 00 00"
+
+
+def test_7_2_2_2_pvt_pdo_mapping(start_drive_sim, can_bus):
+    """Steps 1 to 3 of 7.2.2.2: RPDO2 and RPDO3 remapped in CiA 301's order (COB-ID bit 31
+    first), which the AKD takes too; then a PVT segment through them at a SYNC."""
+    sim = start_drive_sim("run", "--device", "akd", "--node-id", 1, "--listen", "127.0.0.1:0")
+    lst = Listing(can_bus(sim))
+    for request in (
+        "601 23 01 14 01 01 03 00 80",
+        "601 2F 01 16 00 00 00 00 00",
+        "601 23 01 16 01 20 01 C1 60",
+        "601 23 01 16 02 20 02 C1 60",
+        "601 2F 01 16 00 02 00 00 00",
+        "601 23 01 14 01 01 03 00 00",
+        "601 23 02 14 01 01 04 00 80",
+        "601 2F 02 16 00 00 00 00 00",
+        "601 23 02 16 01 20 03 C1 60",  # commented "60C1 sub2": sub 3, the velocity
+        "601 2F 02 16 00 01 00 00 00",
+        "601 23 02 14 01 01 04 00 00",
+    ):
+        lst.x(request, done(request))
+    # Step 2, printed as 4-byte writes (23) to the UNSIGNED8 sub 2: refused for their length.
+    lst.x("601 23 01 14 02 01 00 00 00", "581 80 01 14 02 12 00 07 06")
+    lst.x("601 2F 01 14 02 01 00 00 00", "581 60 01 14 02 00 00 00 00")
+    lst.x("601 2F 02 14 02 01 00 00 00", "581 60 02 14 02 00 00 00 00")
+    for request in (
+        "601 23 00 18 01 81 02 00 80",
+        "601 23 01 18 01 81 02 00 80",
+        "601 23 02 18 01 81 03 00 80",
+        "601 23 03 18 01 81 04 00 80",
+    ):
+        lst.x(request, done(request))
+    assert [lst.read(1, 0x1601, sub) for sub in range(3)] == [2, 0x60C10120, 0x60C10220]
+    assert [lst.read(1, 0x1602, sub) for sub in range(2)] == [1, 0x60C10320]
+    # A segment through both RPDOs, applied at the SYNC (transmission type 1).
+    lst.put("000 01 01", settle=0.1)
+    lst.put("301 00 00 04 00 64 00 00 00")
+    lst.put("401 00 00 50 00")
+    assert lst.read(1, 0x60C1, 1) != 0x40000
+    lst.put("080", settle=0.1)
+    assert [lst.read(1, 0x60C1, sub) for sub in (1, 2, 3)] == [0x40000, 100, 0x500000]
+

@@ -6,7 +6,7 @@
 //! the EDS deliberately differs from a printed value (a reconciliation decision recorded in the
 //! EDS `[Comments]` and the sidecar), the comment says so.
 
-use devices::sidecar::{BusScaling, Dimension, ObjRef, Reaction, ScalingKind, Sidecar, Unit};
+use devices::sidecar::{BusScaling, Dimension, ObjRef, Reaction, Remapping, ScalingKind, Sidecar, Unit};
 use eds::{Access, Category, DataType, Model, ObjectType, Options, PdoMappingEntry, Value};
 
 const EDS_PATH: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/kollmorgen-akd.eds");
@@ -775,6 +775,19 @@ fn sidecar() -> Sidecar {
 
 fn r(s: &str) -> ObjRef {
     s.parse().unwrap()
+}
+
+/// 6.3.1.2 and the listings 7.2.1.5 to 7.2.2.1: the AKD remaps a PDO that stays valid; the
+/// Camozzi manuals give CiA 301's sequence (DRVI 6.3.2.20, DRCS 3.2.22: bit 31 first) and keep
+/// the default.
+#[test]
+fn pdo_remapping_rule_of_each_device() {
+    assert_eq!(sidecar().pdo.remapping, Remapping::WhileValid);
+    assert!(sidecar().pdo.source.unwrap().contains("6.3.1.2"));
+    for name in ["camozzi-drvi", "camozzi-drcs"] {
+        let s = Sidecar::read(&devices::sidecar_path(name)).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(s.pdo.remapping, Remapping::Cia301, "{name}");
+    }
 }
 
 #[test]

@@ -20,6 +20,7 @@
 //! | 6.2.1.12, 5.4.1 | 1010h saves the parameters (the sidecar's `[store]` list: process values and commands are not saved); reset node reloads them | the sidecar's `[store]` list through [`super::store`] |
 //! | 6.2.2.3, 7.2.1.9 | ASCII channel 2026h: WorkBench commands written 4 characters at a time, the answer read 4 characters per (expedited) upload of sub 2 | [`Vendor::on_event`], [`Vendor::on_upload`] |
 //! | 6.6.2.1 | 606Ch: user units over SDO, rpm in a PDO (both 1000:1) | [`Vendor::actual_values`], [`Vendor::on_tpdo`] |
+//! | 6.3.1.2, 6.3, 7.2.1.5 to 7.2.2.1 | PDO remapping while the PDO stays valid: mapping sub 0 = 0 deactivates it, the entries are written, sub 0 = n checks and activates it; a valid PDO's CAN-ID may change (7.2.2.1); CiA 301's order (COB-ID bit 31 first: 6.3, 7.2.2.2) works too | the sidecar's `[pdo] remapping = "while-valid"`, carried by the generated dictionary (`ObjectDictionary::PDO_REMAPPING`) to od-runtime |
 //!
 //! Decisions where the manual is silent (recorded here and tested in `drive/tests/drives_akd.rs`):
 //! * the axis counts 2^20 increments per motor turn internally ([`COUNTS_PER_TURN`]), whatever

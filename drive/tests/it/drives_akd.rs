@@ -20,6 +20,8 @@ use manual_frames::{frame, got, sdo, text};
 use od_bus::CanFrame;
 use od_runtime::NodeId;
 use od_runtime::cia402::State;
+use od_runtime::pdo::Direction;
+use proptest::prelude::*;
 
 type AkdNode = Node<Dictionary, Cia402App<Dictionary, Akd>>;
 
@@ -94,21 +96,6 @@ fn bytes(text: &str) -> Vec<u8> {
     text.split_whitespace().skip(1).map(|w| u8::from_str_radix(w, 16).unwrap()).collect()
 }
 
-/// CiA 301 lets a PDO mapping change only while the PDO is invalid (COB-ID bit 31), and
-/// od-runtime refuses it otherwise (0601 0000h). The listings of 7.2.1.5 to 7.2.2.1 remap valid
-/// PDOs (the manual's firmware accepted that); 7.2.2.2 stops the PDO first ("Arrestare la
-/// possibile trasmissione di RPDO2") and starts it again after. The replays do as 7.2.2.2
-/// does around each remapping: `stop_pdo` before, `start_pdo` after.
-fn stop_pdo(m: &mut Master, id: u8, comm: u16) {
-    let cob = m.read_u32(id, comm, 1).unwrap();
-    m.write_u32(id, comm, 1, cob | 0x8000_0000).unwrap();
-}
-
-fn start_pdo(m: &mut Master, id: u8, comm: u16) {
-    let cob = m.read_u32(id, comm, 1).unwrap();
-    m.write_u32(id, comm, 1, cob & !0x8000_0000).unwrap();
-}
-
 /// `value` is `want` to within one unit of the 1000:1 scaling (606Ch: the axis counts 2^20
 /// per turn, finer than the user unit, so VL.FB shows the rounding in its decimals).
 fn about(value: i64, want: i64) {
@@ -125,6 +112,10 @@ fn resolution_10000(m: &mut Master, id: u8) {
 
 // =============================================================================================
 // Chapter 7.2.1: the configuration examples, frame by frame (node 3).
+//
+// The listings remap PDOs that stay valid (sub 0 = 0, the entries, sub 0 = n, COB-ID bit 31
+// never set), and so do the replays: the AKD's PDO rule (sidecar `[pdo] remapping =
+// "while-valid"`, 6.3.1.2), carried by the generated dictionary to od-runtime.
 
 /// 7.2.1.2: the state machine by SDO: 0240h after power-up, 0233h after shutdown and switch on.
 #[test]
@@ -203,18 +194,14 @@ fn example_7_2_1_5_velocity_by_pdo() {
     let mut m = one(3);
     resolution_10000(&mut m, 3);
     x(&mut m, "603 2F 60 60 00 03 00 00 00", "583 60 60 60 00 00 00 00 00");
-    stop_pdo(&mut m, 3, 0x1400);
     x(&mut m, "603 2F 00 16 00 00 00 00 00", "583 60 00 16 00 00 00 00 00");
     x(&mut m, "603 23 00 16 01 20 00 FF 60", "583 60 00 16 01 00 00 00 00");
     x(&mut m, "603 2F 00 16 00 01 00 00 00", "583 60 00 16 00 00 00 00 00");
-    start_pdo(&mut m, 3, 0x1400);
-    stop_pdo(&mut m, 3, 0x1800);
     x(&mut m, "603 2F 00 1A 00 00 00 00 00", "583 60 00 1A 00 00 00 00 00");
     x(&mut m, "603 23 00 1A 01 20 00 64 60", "583 60 00 1A 01 00 00 00 00");
     // The listing comments 606Ch as a position: it is the velocity actual value.
     x(&mut m, "603 23 00 1A 02 20 00 6C 60", "583 60 00 1A 02 00 00 00 00");
     x(&mut m, "603 2F 00 1A 00 02 00 00 00", "583 60 00 1A 00 00 00 00 00");
-    start_pdo(&mut m, 3, 0x1800);
     disable_unused_pdos(&mut m);
     put(&mut m, "000 01 03");
     got(&mut m, 0x183);
@@ -242,16 +229,12 @@ fn example_7_2_1_5_velocity_by_pdo() {
 fn example_7_2_1_6_torque_by_pdo() {
     let mut m = one(3);
     x(&mut m, "603 2F 60 60 00 04 00 00 00", "583 60 60 60 00 00 00 00 00");
-    stop_pdo(&mut m, 3, 0x1400);
     x(&mut m, "603 2F 00 16 00 00 00 00 00", "583 60 00 16 00 00 00 00 00");
     x(&mut m, "603 23 00 16 01 10 00 71 60", "583 60 00 16 01 00 00 00 00");
     x(&mut m, "603 2F 00 16 00 01 00 00 00", "583 60 00 16 00 00 00 00 00");
-    start_pdo(&mut m, 3, 0x1400);
-    stop_pdo(&mut m, 3, 0x1800);
     x(&mut m, "603 2F 00 1A 00 00 00 00 00", "583 60 00 1A 00 00 00 00 00");
     x(&mut m, "603 23 00 1A 01 10 00 77 60", "583 60 00 1A 01 00 00 00 00");
     x(&mut m, "603 2F 00 1A 00 01 00 00 00", "583 60 00 1A 00 00 00 00 00");
-    start_pdo(&mut m, 3, 0x1800);
     disable_unused_pdos(&mut m);
     put(&mut m, "000 01 03");
     enable_by_sdo(&mut m);
@@ -303,25 +286,19 @@ fn example_7_2_1_7_homing_by_sdo() {
 fn example_7_2_1_8_profile_position() {
     let mut m = one(3);
     // RPDO2 = 607Ah + 6081h. "2F .. 00 00 00 01": only the first data byte counts for 2F.
-    stop_pdo(&mut m, 3, 0x1401);
     x(&mut m, "603 2F 01 16 00 00 00 00 01", "583 60 01 16 00 00 00 00 00");
     x(&mut m, "603 23 01 16 01 20 00 7A 60", "583 60 01 16 01 00 00 00 00");
     x(&mut m, "603 23 01 16 02 20 00 81 60", "583 60 01 16 02 00 00 00 00");
     x(&mut m, "603 2F 01 16 00 02 00 00 00", "583 60 01 16 00 00 00 00 00");
-    start_pdo(&mut m, 3, 0x1401);
     // TPDO1 = 6041h.
-    stop_pdo(&mut m, 3, 0x1800);
     x(&mut m, "603 2F 00 1A 00 00 00 00 01", "583 60 00 1A 00 00 00 00 00");
     x(&mut m, "603 23 00 1A 01 10 00 41 60", "583 60 00 1A 01 00 00 00 00");
     x(&mut m, "603 2F 00 1A 00 01 00 00 00", "583 60 00 1A 00 00 00 00 00");
-    start_pdo(&mut m, 3, 0x1800);
     // TPDO2 = 6064h + 606Ch, on every SYNC.
-    stop_pdo(&mut m, 3, 0x1801);
     x(&mut m, "603 2F 01 1A 00 00 00 00 01", "583 60 01 1A 00 00 00 00 00");
     x(&mut m, "603 23 01 1A 01 20 00 64 60", "583 60 01 1A 01 00 00 00 00");
     x(&mut m, "603 23 01 1A 02 20 00 6C 60", "583 60 01 1A 02 00 00 00 00");
     x(&mut m, "603 2F 01 1A 00 02 00 00 00", "583 60 01 1A 00 00 00 00 00");
-    start_pdo(&mut m, 3, 0x1801);
     x(&mut m, "603 2F 01 18 02 01 00 00 00", "583 60 01 18 02 00 00 00 00");
     x(&mut m, "603 23 02 18 01 83 03 00 80", "583 60 02 18 01 00 00 00 00");
     x(&mut m, "603 23 03 18 01 83 04 00 80", "583 60 03 18 01 00 00 00 00");
@@ -404,27 +381,21 @@ fn example_7_2_1_9_ascii_channel() {
 #[test]
 fn example_7_2_1_10_sync_test() {
     let mut m = one(3);
-    stop_pdo(&mut m, 3, 0x1401);
     x(&mut m, "603 2F 01 16 00 00 00 00 00", "583 60 01 16 00 00 00 00 00");
     x(&mut m, "603 23 01 16 01 20 00 7A 60", "583 60 01 16 01 00 00 00 00");
     x(&mut m, "603 23 01 16 02 20 00 81 60", "583 60 01 16 02 00 00 00 00");
     x(&mut m, "603 2F 01 16 00 02 00 00 00", "583 60 01 16 00 00 00 00 00");
-    stop_pdo(&mut m, 3, 0x1800);
     x(&mut m, "603 2F 00 1A 00 00 00 00 00", "583 60 00 1A 00 00 00 00 00");
     x(&mut m, "603 23 00 1A 01 20 00 64 60", "583 60 00 1A 01 00 00 00 00");
     x(&mut m, "603 2F 00 1A 00 01 00 00 00", "583 60 00 1A 00 00 00 00 00");
-    start_pdo(&mut m, 3, 0x1800);
     x(&mut m, "603 2F 00 18 02 02 00 00 00", "583 60 00 18 02 00 00 00 00");
-    stop_pdo(&mut m, 3, 0x1801);
     x(&mut m, "603 2F 01 1A 00 00 00 00 00", "583 60 01 1A 00 00 00 00 00");
     x(&mut m, "603 23 01 1A 01 10 00 41 60", "583 60 01 1A 01 00 00 00 00");
     x(&mut m, "603 23 01 1A 02 20 00 02 10", "583 60 01 1A 02 00 00 00 00");
-    // Printed as a write to 1601h sub 0 (accepted: RPDO2, still stopped, has two entries);
-    // the TPDO2 count belongs in 1A01h sub 0.
+    // Printed as a write to 1601h sub 0 (accepted: RPDO2 has two entries); the TPDO2 count
+    // belongs in 1A01h sub 0, written after it (the one frame these replays add).
     x(&mut m, "603 2F 01 16 00 02 00 00 00", "583 60 01 16 00 00 00 00 00");
-    start_pdo(&mut m, 3, 0x1401);
     x(&mut m, "603 2F 01 1A 00 02 00 00 00", "583 60 01 1A 00 00 00 00 00");
-    start_pdo(&mut m, 3, 0x1801);
     x(&mut m, "603 2F 01 18 02 03 00 00 00", "583 60 01 18 02 00 00 00 00");
     // PDOs run in Operational (the listing leaves the NMT start out). The comments name
     // 181h/281h: for node 3 they are 183h/283h.
@@ -476,8 +447,6 @@ fn example_7_2_2_1_two_axes_interpolated_position() {
         m.advance(2000);
     }
     // Axis 1: RPDO2 = 60C1h sub 1 + dummy 2100h.
-    stop_pdo(&mut m, 1, 0x1401);
-    stop_pdo(&mut m, 2, 0x1401);
     x(&mut m, "601 2F 01 16 00 00 00 00 00", "581 60 01 16 00 00 00 00 00");
     x(&mut m, "601 23 01 16 01 20 01 C1 60", "581 60 01 16 01 00 00 00 00");
     x(&mut m, "601 23 01 16 02 20 00 00 21", "581 60 01 16 02 00 00 00 00");
@@ -490,18 +459,16 @@ fn example_7_2_2_1_two_axes_interpolated_position() {
     x(&mut m, "602 23 01 16 02 20 01 C1 60", "582 60 01 16 02 00 00 00 00");
     x(&mut m, "602 2F 01 16 00 02 00 00 00", "582 60 01 16 00 00 00 00 00");
     // "Set the COB-ID identical to axis 1" is printed as 1601h sub 1 (a mapping entry):
-    // the COB-ID is 1401h sub 1 (written valid, so it also starts the PDO again).
+    // the COB-ID is 1401h sub 1. The PDO stays valid and takes the new CAN-ID, as the
+    // listing's answer says (the AKD's PDO rule: sidecar `[pdo]`).
     x(&mut m, "602 23 01 14 01 01 03 00 00", "582 60 01 14 01 00 00 00 00");
-    start_pdo(&mut m, 1, 0x1401);
     for id in [1u8, 2] {
         let (rq, rs) = (0x600 + u32::from(id), 0x580 + u32::from(id));
         // TPDO2 = 6063h + 1002h (commented "dummy").
-        stop_pdo(&mut m, id, 0x1801);
         x(&mut m, &format!("{rq:03X} 2F 01 1A 00 00 00 00 00"), &format!("{rs:03X} 60 01 1A 00 00 00 00 00"));
         x(&mut m, &format!("{rq:03X} 23 01 1A 01 20 00 63 60"), &format!("{rs:03X} 60 01 1A 01 00 00 00 00"));
         x(&mut m, &format!("{rq:03X} 23 01 1A 02 20 00 02 10"), &format!("{rs:03X} 60 01 1A 02 00 00 00 00"));
         x(&mut m, &format!("{rq:03X} 2F 01 1A 00 02 00 00 00"), &format!("{rs:03X} 60 01 1A 00 00 00 00 00"));
-        start_pdo(&mut m, id, 0x1801);
         x(&mut m, &format!("{rq:03X} 2F 01 14 02 01 00 00 00"), &format!("{rs:03X} 60 01 14 02 00 00 00 00"));
         x(&mut m, &format!("{rq:03X} 2F 01 18 02 01 00 00 00"), &format!("{rs:03X} 60 01 18 02 00 00 00 00"));
         x(
@@ -550,6 +517,286 @@ fn example_7_2_2_1_two_axes_interpolated_position() {
         assert_ne!(s & akd::manufacturer_status::POWER_STAGE, 0);
         assert_ne!(s & akd::manufacturer_status::HOMED, 0);
     }
+}
+
+// =============================================================================================
+// Chapter 7.2.2.2: PVT through RPDO2 and RPDO3, remapped in CiA 301's order.
+
+/// The success answer to an SDO download `request` (7.2.2.2 prints the requests only).
+fn done(request: &str) -> String {
+    let w: Vec<&str> = request.split_whitespace().collect();
+    let id = u32::from_str_radix(w[0], 16).unwrap() - 0x80;
+    format!("{id:03X} 60 {} {} {} 00 00 00 00", w[2], w[3], w[4])
+}
+
+/// A request of 7.2.2.2 and the success the listing takes for granted.
+fn ok(m: &mut Master, request: &str) {
+    x(m, request, &done(request));
+}
+
+/// 7.2.2.2: PVT segments through RPDO2 (60C1h sub 1 position, sub 2 time) and RPDO3 (sub 3
+/// velocity), taken at each SYNC. The listing stops each RPDO (COB-ID bit 31) around its
+/// remapping, as CiA 301 asks: the AKD takes that order too. Its typos (sidecar decisions) are
+/// sent as printed, the drive's answer checked, and then as meant.
+#[test]
+fn example_7_2_2_2_pvt_by_pdo() {
+    let mut m = one(1);
+    free_axis(&mut m);
+    // Step 1: the PDO mapping.
+    ok(&mut m, "601 23 01 14 01 01 03 00 80");
+    ok(&mut m, "601 2F 01 16 00 00 00 00 00");
+    ok(&mut m, "601 23 01 16 01 20 01 C1 60");
+    ok(&mut m, "601 23 01 16 02 20 02 C1 60");
+    ok(&mut m, "601 2F 01 16 00 02 00 00 00");
+    ok(&mut m, "601 23 01 14 01 01 03 00 00");
+    ok(&mut m, "601 23 02 14 01 01 04 00 80");
+    ok(&mut m, "601 2F 02 16 00 00 00 00 00");
+    // Commented "60C1 sub2": the entry is sub 3, the velocity.
+    ok(&mut m, "601 23 02 16 01 20 03 C1 60");
+    ok(&mut m, "601 2F 02 16 00 01 00 00 00");
+    ok(&mut m, "601 23 02 14 01 01 04 00 00");
+    // Step 2: every SYNC. Printed as 4-byte writes (23) to the UNSIGNED8 sub 2: refused for
+    // their length; one byte (2F) as meant.
+    x(&mut m, "601 23 01 14 02 01 00 00 00", "581 80 01 14 02 12 00 07 06");
+    x(&mut m, "601 23 02 14 02 01 00 00 00", "581 80 02 14 02 12 00 07 06");
+    ok(&mut m, "601 2F 01 14 02 01 00 00 00");
+    ok(&mut m, "601 2F 02 14 02 01 00 00 00");
+    // Step 3: every TPDO off (TPDO1 written 281h with bit 31: any identifier, not valid).
+    ok(&mut m, "601 23 00 18 01 81 02 00 80");
+    ok(&mut m, "601 23 01 18 01 81 02 00 80");
+    ok(&mut m, "601 23 02 18 01 81 03 00 80");
+    ok(&mut m, "601 23 03 18 01 81 04 00 80");
+    // Step 4: "2B .. 00 00 FE FF" writes 0 (linear); -2 (PVT) is FE FF.
+    ok(&mut m, "601 2B C0 60 00 00 00 FE FF");
+    assert_eq!(m.read_i64(1, 0x60C0, 0).unwrap(), 0);
+    ok(&mut m, "601 2B C0 60 00 FE FF 00 00");
+    ok(&mut m, "601 2F 60 60 00 07 00 00 00");
+    // Step 5 (the defaults): 608Fh sub 1 and 204Ch are 32 bits, printed 2B and 2F.
+    x(&mut m, "601 2B 8F 60 01 00 00 10 00", "581 80 8F 60 01 13 00 07 06");
+    x(&mut m, "601 2F 4C 20 01 01 00 00 00", "581 80 4C 20 01 13 00 07 06");
+    x(&mut m, "601 2F 4C 20 02 01 00 00 00", "581 80 4C 20 02 13 00 07 06");
+    ok(&mut m, "601 23 8F 60 01 00 00 10 00");
+    ok(&mut m, "601 23 4C 20 01 01 00 00 00");
+    ok(&mut m, "601 23 4C 20 02 01 00 00 00");
+    // Step 6: NMT start; step 7: the controlword by RPDO1, each answer awaited.
+    put(&mut m, "000 01 01");
+    for (cw, sw) in [("06 00", 0x21), ("07 00", 0x23), ("0F 00", 0x27), ("1F 00", 0x27)] {
+        put(&mut m, &format!("201 {cw}"));
+        wait_sw(&mut m, 1, 0x6F, sw, 100);
+    }
+    // Step 8: the usable buffer is not 0.
+    let answer = sdo(&mut m, "601 40 C4 60 02 00 00 00 00");
+    assert!(answer.starts_with("581 4"), "{answer}");
+    assert_ne!(i32_of(&bytes(&answer)[4..]), 0, "{answer}");
+    // Step 9: the printed segment (all zero: no time, the end of a move) and a SYNC.
+    put(&mut m, "301 00 00 00 00 00 00 00 00");
+    put(&mut m, "401 00 00 00 00");
+    put(&mut m, "080");
+    assert_eq!(vendor(&m, 0).pvt_queued(), 0);
+    // Two segments through the PDOs: a quarter turn in 100 ms ending at 5 turns/s, then a
+    // quarter turn in 50 ms ending at rest (60C1h in increments, 2^20 per turn).
+    for (p, t, v) in [(TURN / 4, 100u32, 5 * TURN), (TURN / 2, 50, 0)] {
+        let mut rpdo2 = (p as i32).to_le_bytes().to_vec();
+        rpdo2.extend(t.to_le_bytes());
+        m.send(CanFrame::standard(0x301, &rpdo2).unwrap());
+        m.send(CanFrame::standard(0x401, &(v as i32).to_le_bytes()).unwrap());
+        // Synchronous RPDOs: applied at the SYNC.
+        put(&mut m, "080");
+        assert_eq!((m.read_i64(1, 0x60C1, 1).unwrap(), m.read_i64(1, 0x60C1, 3).unwrap()), (p, v));
+    }
+    put(&mut m, "301 00 00 00 00 00 00 00 00");
+    put(&mut m, "080");
+    m.advance(160_000);
+    assert_eq!(m.read_i64(1, 0x6063, 0).unwrap(), TURN / 2);
+    assert_eq!(vendor(&m, 0).pvt_queued(), 0);
+}
+
+// =============================================================================================
+// The AKD's PDO rule (6.3.1.2, sidecar `[pdo] remapping = "while-valid"`) against CiA 301's.
+
+/// A PDO of the AKD: (TPDO?, number 1..=4, mapping entries).
+fn akd_mapping() -> impl Strategy<Value = (bool, u16, Vec<u32>)> {
+    // The objects the listings map (2100h: the dummy of 7.2.2.1).
+    let rx =
+        vec![0x6040_0010u32, 0x6060_0008, 0x607A_0020, 0x60FF_0020, 0x6081_0020, 0x6071_0010, 0x60C1_0120, 0x2100_0020];
+    let tx = vec![0x6041_0010u32, 0x6064_0020, 0x606C_0020, 0x6063_0020, 0x6077_0010, 0x1002_0020, 0x6061_0008];
+    (any::<bool>(), 1u16..=4)
+        .prop_flat_map(move |(tpdo, n)| {
+            let pool = if tpdo { tx.clone() } else { rx.clone() };
+            (Just(tpdo), Just(n), proptest::sample::subsequence(pool, 1..=4).prop_shuffle())
+        })
+        .prop_filter("at most 64 bits", |(_, _, map)| map.iter().map(|e| e & 0xFF).sum::<u32>() <= 64)
+}
+
+/// The mapping and COB-ID of PDO `n` as the device holds them.
+fn held(m: &mut Master, tpdo: bool, n: u16) -> (u32, Vec<u32>) {
+    let (comm, map) = if tpdo { (0x1800 + n - 1, 0x1A00 + n - 1) } else { (0x1400 + n - 1, 0x1600 + n - 1) };
+    let count = m.read_u8(3, map, 0).unwrap();
+    let entries = (1..=count).map(|k| m.read_u32(3, map, k).unwrap()).collect();
+    (m.read_u32(3, comm, 1).unwrap(), entries)
+}
+
+/// A TPDO's frame length after a SYNC (transmission type 1, the node operational).
+fn tpdo_length(m: &mut Master, n: u16) -> usize {
+    m.write_u8(3, 0x1800 + n - 1, 2, 1).unwrap();
+    m.nmt_start(3);
+    m.advance(1000);
+    let cob = 0x180 + 0x100 * u32::from(n - 1) + 3;
+    m.take_id(cob);
+    m.sync();
+    m.advance(1000);
+    let frames = m.take_id(cob);
+    assert_eq!(frames.len(), 1, "one TPDO {cob:03X} per SYNC");
+    frames[0].frame.data().len()
+}
+
+/// A step of a remapping over SDO.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Step {
+    /// COB-ID bit 31 set (the PDO invalid).
+    Invalidate,
+    /// Mapping sub 0 = 0.
+    Clear,
+    /// Mapping entry k + 1.
+    Entry(usize),
+    /// Mapping sub 0 = n.
+    Count,
+    /// COB-ID bit 31 cleared.
+    Validate,
+}
+
+/// Writes `steps` for PDO `n` (`map` its new mapping, `cob` its CAN-ID).
+fn remap_steps(m: &mut Master, tpdo: bool, n: u16, cob: u32, map: &[u32], steps: &[Step]) {
+    let (comm, idx) = if tpdo { (0x1800 + n - 1, 0x1A00 + n - 1) } else { (0x1400 + n - 1, 0x1600 + n - 1) };
+    for step in steps {
+        let done = match *step {
+            Step::Invalidate => m.write_u32(3, comm, 1, cob | 0x8000_0000),
+            Step::Clear => m.write_u8(3, idx, 0, 0),
+            Step::Entry(k) => m.write_u32(3, idx, k as u8 + 1, map[k]),
+            Step::Count => m.write_u8(3, idx, 0, map.len() as u8),
+            Step::Validate => m.write_u32(3, comm, 1, cob),
+        };
+        assert!(done.is_ok(), "{step:?} of {steps:?}: {done:?}");
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
+
+    /// CiA 301's sequence (COB-ID bit 31, sub 0 = 0, the entries, sub 0 = n, COB-ID valid),
+    /// with the COB-ID written invalid and valid again at any point around the mapping steps,
+    /// and the AKD's (sub 0 = 0, the entries, sub 0 = n), each with the entries in any order,
+    /// leave the same mapping, the same valid COB-ID and the same PDO on the bus.
+    #[test]
+    fn cia_301_and_akd_remapping_in_any_order_give_the_same_mapping(
+        (tpdo, n, map) in akd_mapping(),
+        order in Just((0..4usize).collect::<Vec<_>>()).prop_shuffle(),
+        order_akd in Just((0..4usize).collect::<Vec<_>>()).prop_shuffle(),
+        (off, on) in (0..7usize, 0..7usize),
+    ) {
+        let entries = |order: &[usize]| order.iter().copied().filter(|&k| k < map.len()).map(Step::Entry).collect::<Vec<_>>();
+        // CiA 301's steps, then the COB-ID's two writes moved anywhere, bit 31 set first.
+        let mut cia_steps: Vec<Step> = [Step::Clear].into_iter().chain(entries(&order)).chain([Step::Count]).collect();
+        let off = off.min(cia_steps.len());
+        cia_steps.insert(off, Step::Invalidate);
+        let on = (off + 1 + on).min(cia_steps.len());
+        cia_steps.insert(on, Step::Validate);
+        let akd_steps: Vec<Step> = [Step::Clear].into_iter().chain(entries(&order_akd)).chain([Step::Count]).collect();
+        let mut cia = one(3);
+        let comm = if tpdo { 0x1800 + n - 1 } else { 0x1400 + n - 1 };
+        let cob = cia.read_u32(3, comm, 1).unwrap() & 0x7FF;
+        remap_steps(&mut cia, tpdo, n, cob, &map, &cia_steps);
+        let mut akd = one(3);
+        remap_steps(&mut akd, tpdo, n, cob, &map, &akd_steps);
+        let want = (cob, map.clone());
+        prop_assert_eq!(held(&mut cia, tpdo, n), want.clone());
+        prop_assert_eq!(held(&mut akd, tpdo, n), want);
+        if tpdo {
+            let bytes = map.iter().map(|e| e & 0xFF).sum::<u32>().div_ceil(8) as usize;
+            prop_assert_eq!(tpdo_length(&mut cia, n), bytes);
+            prop_assert_eq!(tpdo_length(&mut akd, n), bytes);
+        }
+    }
+}
+
+/// The AKD's rule still refuses what does not fit, when sub 0 is written (5.4.5.6's codes),
+/// and an entry written while the PDO is active; sub 0 = 0 takes the PDO off the bus.
+#[test]
+fn the_akd_checks_a_mapping_when_sub_0_is_written() {
+    let mut m = one(3);
+    // An entry while TPDO1 is active (sub 0 = 1): refused as CiA 301 (the manual gives none).
+    assert_eq!(m.write_u32(3, 0x1A00, 1, 0x6064_0020).map_err(abort), Err(Some(0x0601_0000)));
+    x(&mut m, "603 2F 00 1A 00 00 00 00 00", "583 60 00 1A 00 00 00 00 00");
+    // Sub 0 = 0: TPDO1 (valid, event-driven) is off the bus.
+    m.nmt_start(3);
+    m.advance(1000);
+    m.take_id(0x183);
+    m.switch_on(3).unwrap();
+    m.advance(5000);
+    assert!(got(&mut m, 0x183).is_empty(), "a PDO without entries is not sent");
+    // Three 32-bit entries: 96 bits, refused when sub 0 = 3 is written (0604 0042h).
+    for (k, e) in [0x6064_0020u32, 0x606C_0020, 0x6063_0020].into_iter().enumerate() {
+        m.write_u32(3, 0x1A00, k as u8 + 1, e).unwrap();
+    }
+    x(&mut m, "603 2F 00 1A 00 03 00 00 00", "583 80 00 1A 00 42 00 04 06");
+    // An object that is not mappable (1000h): 0604 0041h when the entry is written.
+    x(&mut m, "603 23 00 1A 03 20 00 00 10", "583 80 00 1A 03 41 00 04 06");
+    x(&mut m, "603 2F 00 1A 00 02 00 00 00", "583 60 00 1A 00 00 00 00 00");
+    assert_eq!(tpdo_length(&mut m, 1), 8, "6064h + 606Ch");
+}
+
+/// The DRVI and the DRCS keep CiA 301's rule, as their manuals' remapping sequences say (DRVI
+/// 6.3.2.20, DRCS 3.2.22: bit 31 first); the AKD takes the same frames.
+#[test]
+fn the_drvi_and_the_drcs_remap_only_an_invalid_pdo() {
+    for (kind, remaps) in [(DeviceKind::Drvi, false), (DeviceKind::Drcs, false), (DeviceKind::Akd, true)] {
+        let mut sim = Sim::new();
+        sim.add(kind.build(&NodeConfig { node_id: Some(3), ..Default::default() }, &DeviceApps::new()).unwrap());
+        let mut m = Master::new(sim);
+        m.advance(1000);
+        let want = |code: u32| if remaps { Ok(()) } else { Err(Some(code)) };
+        // TPDO1 is valid on all three: its mapping and its CAN-ID are locked under CiA 301.
+        assert_eq!(m.read_u32(3, 0x1800, 1).unwrap(), 0x183, "{kind:?}");
+        assert_eq!(m.write_u8(3, 0x1A00, 0, 0).map_err(abort), want(0x0601_0000), "{kind:?}");
+        assert_eq!(m.write_u32(3, 0x1800, 1, 0x283).map_err(abort), want(0x0609_0030), "{kind:?}");
+        if !remaps {
+            // CiA 301's order works.
+            m.write_u32(3, 0x1800, 1, 0x8000_0183).unwrap();
+            m.write_u8(3, 0x1A00, 0, 0).unwrap();
+            m.write_u32(3, 0x1A00, 1, 0x6041_0010).unwrap();
+            m.write_u8(3, 0x1A00, 0, 1).unwrap();
+            m.write_u32(3, 0x1800, 1, 0x283).unwrap();
+        }
+        assert_eq!(m.read_u32(3, 0x1800, 1).unwrap(), 0x283, "{kind:?}");
+    }
+}
+
+/// od-master's remapping (`remote::map_pdo`, what `Pdo::configure` and the boot's concise
+/// writes do) writes CiA 301's order, which the AKD takes too.
+#[test]
+fn od_master_remaps_the_akd_in_cia_301_order() {
+    let mut m = one(3);
+    let rpdo = [0x6040_0010u32, 0x607A_0020];
+    let tpdo = [0x6041_0010u32, 0x6064_0020];
+    m.with_node(3, async |n| {
+        od_master::remote::map_pdo(&n, Direction::Receive, 2, 0x303, &rpdo, Dictionary::check_rpdo_mapping).await?;
+        od_master::remote::map_pdo(&n, Direction::Transmit, 2, 0x283, &tpdo, Dictionary::check_tpdo_mapping).await
+    })
+    .unwrap();
+    assert_eq!(held(&mut m, false, 2), (0x303, rpdo.to_vec()));
+    assert_eq!(held(&mut m, true, 2), (0x283, tpdo.to_vec()));
+    // The RPDO reaches 607Ah and the TPDO carries the statusword and 6064h on each SYNC.
+    m.nmt_start(3);
+    m.advance(1000);
+    put(&mut m, "303 06 00 40 E2 01 00");
+    assert_eq!(m.read_i64(3, 0x607A, 0).unwrap(), 123_456);
+    m.write_u8(3, 0x1801, 2, 1).unwrap();
+    m.take_id(0x283);
+    m.sync();
+    m.advance(1000);
+    let sent = got(&mut m, 0x283);
+    assert_eq!(sent.len(), 1);
+    assert_eq!(bytes(&sent[0])[..2], [0x31, 0x02], "Ready to switch on after the shutdown by RPDO2");
 }
 
 // =============================================================================================

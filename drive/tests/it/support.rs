@@ -137,6 +137,16 @@ impl Master {
         out
     }
 
+    /// Runs `call` with od-master's handle of `node` (what a test of od-master's own
+    /// procedures, such as `remote::map_pdo`, calls them with).
+    pub fn with_node<T>(
+        &mut self,
+        node: u8,
+        call: impl AsyncFnOnce(od_master::Node) -> Result<T, Error>,
+    ) -> Result<T, Error> {
+        self.sdo(node, call)
+    }
+
     /// Puts a frame on the bus as it is (a test's own raw frame).
     pub fn send(&mut self, frame: CanFrame) {
         let bus = self.vb.bus().clone();

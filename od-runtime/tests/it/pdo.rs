@@ -2,7 +2,8 @@
 
 use crate::common;
 use common::*;
-use od_runtime::{Event, WriteSource};
+use od_runtime::od::{AbortCode, Area, EntryInfo, ObjectDictionary};
+use od_runtime::{Device, Event, Micros, NoStorage, NodeId, WriteSource};
 
 fn operational() -> Harness {
     let mut h = Harness::new();
@@ -323,4 +324,72 @@ fn a_mapping_longer_than_the_device_keeps_is_refused() {
     assert_eq!(abort_code(&sdo(0x1A00, 0, &[4])), Some(0x0609_0031), "4 entries > MAP");
     assert!(sdo(0x1A00, 0, &[3]).starts_with("581 60"));
     assert!(sdo(0x1800, 1, &[0x81, 0x01, 0, 0]).starts_with("581 60"), "valid again with 3 entries");
+}
+
+/// [`TestOd`] with the rule of a device that remaps a PDO while it stays valid (the Kollmorgen
+/// AKD's): what a hand-written dictionary declares, as a generated one does from its sidecar.
+#[derive(Clone, Default)]
+struct WhileValidOd(TestOd);
+
+impl ObjectDictionary for WhileValidOd {
+    const PDO_REMAPPING: od_runtime::pdo::Remapping = od_runtime::pdo::Remapping::WhileValid;
+
+    fn entries(&self) -> &'static [EntryInfo] {
+        self.0.entries()
+    }
+
+    fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, AbortCode> {
+        self.0.read(index, sub, buf)
+    }
+
+    fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), AbortCode> {
+        self.0.write(index, sub, data)
+    }
+
+    fn restore_defaults(&mut self, area: Area, node_id: u8) {
+        self.0.restore_defaults(area, node_id)
+    }
+}
+
+#[test]
+fn a_dictionary_with_the_while_valid_rule_remaps_a_valid_pdo() {
+    assert_eq!(<TestOd as ObjectDictionary>::PDO_REMAPPING, od_runtime::pdo::Remapping::Cia301, "the default");
+    let mut dev = Device::new(WhileValidOd(TestOd::new()), (), NoStorage, NodeId::new(NODE).unwrap());
+    let mut now = 0;
+    let exchange = |dev: &mut Device<WhileValidOd, ()>, now: &mut Micros, req: &str| {
+        *now += 1000;
+        dev.on_frame(&frame(req), *now);
+        let mut out = Vec::new();
+        dev.poll(*now, |f| out.push(f.to_string()));
+        out.retain(|f| !f.starts_with("701"));
+        out
+    };
+    exchange(&mut dev, &mut now, "000 01 01");
+    // TPDO1 (181h, valid, event-driven) remapped without touching its COB-ID: sub 0 = 0 takes
+    // it off the bus, an entry is refused while sub 0 is not 0, sub 0 = n checks the mapping.
+    assert_eq!(exchange(&mut dev, &mut now, "601 23 00 1A 01 20 00 64 60"), ["581 80 00 1A 01 00 00 01 06"]);
+    assert_eq!(exchange(&mut dev, &mut now, "601 2F 00 1A 00 00 00 00 00"), ["581 60 00 1A 00 00 00 00 00"]);
+    assert_eq!(exchange(&mut dev, &mut now, "601 23 00 1A 01 20 00 64 60"), ["581 60 00 1A 01 00 00 00 00"]);
+    assert_eq!(exchange(&mut dev, &mut now, "601 23 00 1A 02 20 00 64 60"), ["581 60 00 1A 02 00 00 00 00"]);
+    assert_eq!(exchange(&mut dev, &mut now, "601 23 00 1A 03 10 00 41 60"), ["581 60 00 1A 03 00 00 00 00"]);
+    // 80 bits: refused when sub 0 is written (0604 0042h); two entries fit.
+    assert_eq!(exchange(&mut dev, &mut now, "601 2F 00 1A 00 03 00 00 00"), ["581 80 00 1A 00 42 00 04 06"]);
+    // Active again, the event-driven TPDO1 sends its new mapping (6064h twice).
+    assert_eq!(
+        exchange(&mut dev, &mut now, "601 2F 00 1A 00 02 00 00 00"),
+        ["581 60 00 1A 00 00 00 00 00", "181 00 00 00 00 00 00 00 00"]
+    );
+    // The valid TPDO1 takes a new CAN-ID at once (and sends on it); a restricted one is still
+    // refused.
+    assert_eq!(
+        exchange(&mut dev, &mut now, "601 23 00 18 01 81 02 00 00"),
+        ["581 60 00 18 01 00 00 00 00", "281 00 00 00 00 00 00 00 00"]
+    );
+    assert_eq!(exchange(&mut dev, &mut now, "601 23 00 18 01 01 07 00 00"), ["581 80 00 18 01 30 00 09 06"]);
+    // Event-driven: the new mapping goes out on 281h when 6064h changes.
+    dev.od_mut().0.set(0x6064, 0, 0x0102_0304);
+    now += 1000;
+    let mut out = Vec::new();
+    dev.poll(now, |f| out.push(f.to_string()));
+    assert_eq!(out, ["281 04 03 02 01 04 03 02 01"]);
 }
