@@ -66,3 +66,25 @@ def test_the_binaries_have_socketcan_built_in(drive_sim_binary):
     assert result.returncode != 0
     assert "nosuchcan7" in result.stderr and "does it exist" in result.stderr, result.stderr
     assert "feature" not in result.stderr, result.stderr
+
+
+def test_the_simulated_adapter_on_a_hub_reaches_the_devices_there(start_drive_sim, device_eds):
+    """`drive-sim slcan --bus socketcand://...`: the adapter joins a hub, where the devices of
+    another drive-sim run; python-can's slcan reaches them through it."""
+    pytest.importorskip("serial", reason="python-can's slcan interface needs pyserial (requirements-test.txt)")
+    import canopen
+
+    devices = start_drive_sim("run", "--device", "drvi", "--node-id", "5", "--listen", "127.0.0.1:0")
+    adapter = start_drive_sim(
+        "slcan", "--bus", f"socketcand://{devices.address}/can0", "--firmware", "lawicel", ready="slcan on "
+    )
+    network = canopen.Network()
+    network.connect(interface="slcan", channel=adapter.address, bitrate=500000, sleep_after_open=0)
+    try:
+        node = canopen.RemoteNode(5, str(device_eds["drvi"]))
+        node.sdo.RESPONSE_TIMEOUT = 2.0
+        network.add_node(node)
+        assert node.sdo.upload(0x1000, 0)[:2] == (402).to_bytes(2, "little")
+        assert int.from_bytes(node.sdo.upload(0x1018, 1), "little") != 0
+    finally:
+        network.disconnect()
