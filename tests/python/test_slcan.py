@@ -5,10 +5,8 @@ heartbeat and a TPDO. Also: the binaries as built have SocketCAN on Linux (no fe
 for it; this machine has no CAN interface, so the check is that opening one fails in the
 socketcan transport, naming the interface, not for want of a feature)."""
 
-import os
 import subprocess
 import sys
-import time
 
 import pytest
 
