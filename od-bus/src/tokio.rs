@@ -743,22 +743,14 @@ impl SerialShared {
 }
 
 /// Opens the port and writes the setup (blocking calls, on tokio's blocking pool).
-async fn open_port(
-    port: &str,
-    serial_baud: u32,
-    setup: crate::slcan::Setup,
-) -> Result<PortPair, TransportError> {
+async fn open_port(port: &str, serial_baud: u32, setup: crate::slcan::Setup) -> Result<PortPair, TransportError> {
     let name = port.to_owned();
     ::tokio::task::spawn_blocking(move || open_port_blocking(&name, serial_baud, setup))
         .await
         .map_err(|e| TransportError::Unavailable(format!("opening {port}: {e}")))?
 }
 
-fn open_port_blocking(
-    name: &str,
-    serial_baud: u32,
-    setup: crate::slcan::Setup,
-) -> Result<PortPair, TransportError> {
+fn open_port_blocking(name: &str, serial_baud: u32, setup: crate::slcan::Setup) -> Result<PortPair, TransportError> {
     use std::io::Write as _;
     let reader = crate::slcan::open_serial(name, serial_baud)?;
     let mut writer =
