@@ -106,14 +106,6 @@ for bin in odgen drive-sim; do
   [ -x "$target/debug/$bin" ] || { echo "cargo test did not build $target/debug/$bin" >&2; exit 1; }
 done
 
-# od-bus's optional parts (the async buses with the slcan tests over pseudo-terminals, the
-# od-runtime frame conversions) are off in od-bus's own build: lint and test them here.
-# SocketCAN is no feature: it is built in on Linux (its unit tests run in every build); the
-# vcan test runs where vcan0 exists and says it was skipped elsewhere (no CAN sockets here).
-step "od-bus with every feature (tokio, od-runtime)"
-cargo clippy -p od-bus --all-targets --all-features --locked -- -D warnings
-cargo test -p od-bus --all-features --locked
-
 # `cargo test` builds the binaries with the features of the dev-dependencies too; this checks
 # that every binary compiles with its own dependencies' features alone, SocketCAN (Linux) and
 # slcan included (a check, not a second build: `cargo build --bins` after `cargo test` took
