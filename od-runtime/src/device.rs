@@ -164,8 +164,6 @@ type Mapped = MappedHandle;
 
 /// Whether the CiA 402 state machine is built in (cargo feature `cia402`).
 const CIA402: bool = cfg!(feature = "cia402");
-/// Whether SDO block transfers are built in (cargo feature `sdo-block`).
-pub(crate) const SDO_BLOCK: bool = cfg!(feature = "sdo-block");
 /// Whether store/restore through [`Storage`] is built in (cargo feature `store`).
 const STORE: bool = cfg!(feature = "store");
 

@@ -7,9 +7,9 @@
 //! most one block (127 frames) per call.
 
 use crate::crc::crc16_ccitt;
-use crate::device::SDO_BLOCK;
 use crate::frame::Micros;
 use crate::od::{AbortCode, EntryInfo};
+use crate::sdo_block::SDO_BLOCK;
 
 /// Default SDO timeout: a transfer idle for this long is aborted with 0x0504_0000.
 pub const DEFAULT_TIMEOUT: Micros = 1_000_000;
