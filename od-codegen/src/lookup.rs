@@ -111,12 +111,12 @@ pub(crate) fn tokens(keys: &[(u16, u8)]) -> Option<TokenStream> {
             ranks: &[#(#ranks),*],
             objects: &[#(#numbers),*],
             extra: &[#(#extra),*],
-            entries: &ENTRIES,
+            entries: &ROWS,
         };
 
         /// Where a host finds each object's run of entries in one read (1 KB per page of
-        /// 256 indices); empty on a microcontroller, which binary-searches `ENTRIES`.
-        static DIRECT: [u32; #rt::direct_len(#n_pages)] = #rt::direct(&ENTRIES);
+        /// 256 indices); empty on a microcontroller, which binary-searches `ROWS`.
+        static DIRECT: [u32; #rt::direct_len(#n_pages)] = #rt::direct(&ROWS);
     })
 }
 
