@@ -324,7 +324,16 @@ pub(crate) fn tables(
         } else {
             let mut t = Text::with_capacity(plan.entries.len() * 520 + 200);
             t.doc(4, &doc);
-            t.line(4, &["pub static ROWS: [::od_runtime::", crate::support::RUNTIME_PRIVATE, "::Row; ", &n_entries.to_string(), "] = ["]);
+            t.line(
+                4,
+                &[
+                    "pub static ROWS: [::od_runtime::",
+                    crate::support::RUNTIME_PRIVATE,
+                    "::Row; ",
+                    &n_entries.to_string(),
+                    "] = [",
+                ],
+            );
             for (e, x) in plan.entries.iter().zip(&extras_of) {
                 entry_row(&mut t, e, *x);
             }

@@ -26,7 +26,7 @@
 //!
 //! Like the rest of the crate it is `no_std`, never allocates and never panics.
 
-use crate::od::{AbortCode, Access, DataType, EntryExtras, EntryInfo, EntryFlags, ObjectDictionary};
+use crate::od::{AbortCode, Access, DataType, EntryExtras, EntryFlags, EntryInfo, ObjectDictionary};
 
 // ---------------------------------------------------------------------------------------------
 // Storage
