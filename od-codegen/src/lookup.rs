@@ -1,4 +1,4 @@
-//! The lookup tables of a generated dictionary: `(index, sub)` → position in `ENTRIES`.
+//! The lookup tables of a generated dictionary: `(index, sub)` → position in `ROWS` (and `ENTRIES`).
 //!
 //! The generator computes the tables the runtime's `Lookup` walks (see
 //! `od_runtime::__private_v2::Lookup`): a page per high byte of the index, a 256-bit set per
@@ -123,8 +123,10 @@ pub(crate) fn tokens(keys: &[(u16, u8)]) -> Option<TokenStream> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use od_runtime::__private_v2::{Lookup, direct, lookup as runtime_lookup, position as compact, position_direct};
-    use od_runtime::od::{AbortCode, Access, DataType, EntryInfo};
+    use od_runtime::__private_v2::{
+        Lookup, Row, direct, lookup as runtime_lookup, meta, position as compact, position_direct,
+    };
+    use od_runtime::od::{AbortCode, Access, DataType};
     use proptest::prelude::*;
 
     fn leak<T>(v: Vec<T>) -> &'static [T] {
@@ -174,8 +176,13 @@ mod tests {
         let bits = od_runtime::__private_v2::bits::<MAX_PAGES>(&objects);
         assert_eq!(&bits[..t.bits.len()], &t.bits[..]);
         assert!(bits[t.bits.len()..].iter().all(|b| *b == [0; 4]));
-        let entries =
-            keys.iter().map(|&(index, sub)| EntryInfo::new(index, sub, DataType::Unsigned8, Access::Ro, false));
+        let entries = keys.iter().map(|&(index, sub)| Row {
+            index,
+            sub,
+            data_type: DataType::Unsigned8,
+            slot: 0,
+            meta: meta(Access::Ro, false, None),
+        });
         Lookup {
             pages,
             bits: leak(t.bits),

@@ -419,7 +419,7 @@ pub fn slot_mut<D: Table>(d: &mut D, pos: usize) -> Option<SlotMut<'_>> {
 // Lookup
 // ---------------------------------------------------------------------------------------------
 
-/// The lookup tables of a dictionary: `(index, sub)` → position in its `ENTRIES` table, in a
+/// The lookup tables of a dictionary: `(index, sub)` → position in its `ROWS` (and `ENTRIES`), in a
 /// constant number of steps for almost every key.
 ///
 /// The entries are sorted by `(index, sub)`. The index's high byte selects a *page*

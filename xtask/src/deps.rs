@@ -498,7 +498,7 @@ pub fn circles_of(root: &Path) -> Result<Vec<Circle>, String> {
                 .or_insert_with(|| format!("{}:{line} ({})", m.file.display(), p.join("::")));
         }
     }
-    let nodes: Vec<&Vec<String>> = mods.keys().collect();
+    let nodes: Vec<&[String]> = mods.keys().map(Vec::as_slice).collect();
     let mut out = Vec::new();
     for scc in strongly_connected(&nodes, &edges) {
         if scc.len() < 2 {
@@ -524,16 +524,16 @@ pub fn circles_of(root: &Path) -> Result<Vec<Circle>, String> {
 /// A shortest circle from `start` back to it inside `scc` (which has one: it is a strongly
 /// connected component of more than one module), `start` first and last.
 fn shortest_circle(
-    start: &Vec<String>,
+    start: &[String],
     scc: &[Vec<String>],
     edges: &BTreeMap<Vec<String>, BTreeMap<Vec<String>, String>>,
 ) -> Vec<Vec<String>> {
     let mut prev: BTreeMap<Vec<String>, Vec<String>> = BTreeMap::new();
-    let mut queue = std::collections::VecDeque::from([start.clone()]);
-    let mut back = start.clone();
+    let mut queue = std::collections::VecDeque::from([start.to_vec()]);
+    let mut back = start.to_vec();
     'search: while let Some(n) = queue.pop_front() {
         for t in edges.get(&n).into_iter().flat_map(|e| e.keys()) {
-            if t == start {
+            if t.as_slice() == start {
                 back = n.clone();
                 break 'search;
             }
@@ -545,28 +545,28 @@ fn shortest_circle(
     }
     let mut cycle = vec![back.clone()];
     let mut at = back;
-    while at != *start {
-        at = prev.get(&at).cloned().unwrap_or_else(|| start.clone());
+    while at.as_slice() != start {
+        at = prev.get(&at).cloned().unwrap_or_else(|| start.to_vec());
         cycle.push(at.clone());
     }
     cycle.reverse();
-    cycle.push(start.clone());
+    cycle.push(start.to_vec());
     cycle
 }
 
 /// Tarjan's strongly connected components, each in the order of `nodes`.
 fn strongly_connected(
-    nodes: &[&Vec<String>],
+    nodes: &[&[String]],
     edges: &BTreeMap<Vec<String>, BTreeMap<Vec<String>, String>>,
 ) -> Vec<Vec<Vec<String>>> {
     struct State<'a> {
-        index: BTreeMap<&'a Vec<String>, (usize, usize)>,
-        stack: Vec<&'a Vec<String>>,
+        index: BTreeMap<&'a [String], (usize, usize)>,
+        stack: Vec<&'a [String]>,
         next: usize,
         out: Vec<Vec<Vec<String>>>,
     }
     fn visit<'a>(
-        v: &'a Vec<String>,
+        v: &'a [String],
         edges: &'a BTreeMap<Vec<String>, BTreeMap<Vec<String>, String>>,
         s: &mut State<'a>,
     ) {
@@ -574,14 +574,14 @@ fn strongly_connected(
         s.next += 1;
         s.stack.push(v);
         for w in edges.get(v).into_iter().flat_map(|e| e.keys()) {
-            match s.index.get(w) {
+            match s.index.get(w.as_slice()) {
                 None => {
                     visit(w, edges, s);
-                    let low = s.index[w].1.min(s.index[v].1);
+                    let low = s.index[w.as_slice()].1.min(s.index[v].1);
                     s.index.get_mut(v).expect("visited").1 = low;
                 }
-                Some(_) if s.stack.contains(&w) => {
-                    let low = s.index[w].0.min(s.index[v].1);
+                Some(_) if s.stack.contains(&w.as_slice()) => {
+                    let low = s.index[w.as_slice()].0.min(s.index[v].1);
                     s.index.get_mut(v).expect("visited").1 = low;
                 }
                 Some(_) => {}
@@ -590,7 +590,7 @@ fn strongly_connected(
         if s.index[v].0 == s.index[v].1 {
             let mut comp = Vec::new();
             while let Some(w) = s.stack.pop() {
-                comp.push(w.clone());
+                comp.push(w.to_vec());
                 if w == v {
                     break;
                 }
