@@ -42,14 +42,14 @@ impl SdoEntry {
         self.0 & 1 << 26 != 0
     }
 
-    /// Whether the value's length varies (strings, DOMAIN): [`len`](Self::len) is then its
+    /// Whether the value's length varies (strings, DOMAIN): [`byte_len`](Self::byte_len) is then its
     /// capacity.
     pub const fn variable(self) -> bool {
         self.0 & 1 << 24 != 0
     }
 
     /// The value's length in bytes ([`EntryInfo::byte_len`]).
-    pub const fn len(self) -> usize {
+    pub const fn byte_len(self) -> usize {
         (self.0 & 0xFF_FFFF) as usize
     }
 }
@@ -235,7 +235,7 @@ impl<const N: usize> SdoServer<N> {
 
     /// Length and size checks shared by segmented and block downloads.
     fn check_size(info: SdoEntry, size: usize) -> Result<(), AbortCode> {
-        let cap = info.len();
+        let cap = info.byte_len();
         if info.variable() {
             if size > cap {
                 return Err(AbortCode::LENGTH_TOO_HIGH);
@@ -270,7 +270,7 @@ impl<const N: usize> SdoServer<N> {
             } else if info.variable() {
                 4
             } else {
-                info.len().clamp(1, 4)
+                info.byte_len().clamp(1, 4)
             };
             acc.write(index, sub, &d[4..4 + n]).map_err(|c| (index, sub, c))?;
             self.state = State::Idle;

@@ -565,11 +565,7 @@ fn strongly_connected(
         next: usize,
         out: Vec<Vec<Vec<String>>>,
     }
-    fn visit<'a>(
-        v: &'a [String],
-        edges: &'a BTreeMap<Vec<String>, BTreeMap<Vec<String>, String>>,
-        s: &mut State<'a>,
-    ) {
+    fn visit<'a>(v: &'a [String], edges: &'a BTreeMap<Vec<String>, BTreeMap<Vec<String>, String>>, s: &mut State<'a>) {
         s.index.insert(v, (s.next, s.next));
         s.next += 1;
         s.stack.push(v);
