@@ -9,6 +9,7 @@
 pub mod ast;
 pub mod codes;
 pub mod concise;
+mod decimal;
 pub mod diag;
 pub mod encoding;
 pub mod lex;

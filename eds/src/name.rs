@@ -93,7 +93,7 @@ impl Name {
                 return Name(Repr::Inline { len: at as u8 + count, bytes });
             }
         }
-        self.with_suffix(crate::lower::decimal_u8(n))
+        self.with_suffix(crate::decimal::decimal_u8(n))
     }
 
     /// The text.

@@ -6616,21 +6616,20 @@ Denotation=MOTOR.BRAKEIMM
             0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2, 4, 6, 6, 8, 8, 8, 8, 8, 8, 8,
             8, 8, 0, 0, 3, 5, 11, 13, 13, 13, 15, 0,
         ],
-        entries: &ENTRIES,
+        entries: &ROWS,
     };
     /// Where a host finds each object's run of entries in one read (1 KB per page of
-    /// 256 indices); empty on a microcontroller, which binary-searches `ENTRIES`.
+    /// 256 indices); empty on a microcontroller, which binary-searches `ROWS`.
     static DIRECT: [u32; ::od_runtime::__private_v2::direct_len(16)] = ::od_runtime::__private_v2::direct(
-        &ENTRIES,
+        &ROWS,
     );
-    /// Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.
-    pub static ENTRIES: [::od_runtime::od::EntryInfo; 591] = [
-        ::od_runtime::od::EntryInfo {
+    /// The entry table the device reads, sorted by `(index, sub)`: 8 bytes a row.
+    /// [`ENTRIES`] is made from it.
+    pub static ROWS: [::od_runtime::__private_v2::Row; 591] = [
+        ::od_runtime::__private_v2::Row {
             index: 0x1000,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6638,14 +6637,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[0]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(0),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1001,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6653,14 +6654,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1002,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6668,14 +6671,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6685,14 +6690,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[1]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(1),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6700,14 +6707,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6715,14 +6724,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6730,14 +6741,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6745,14 +6758,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6760,14 +6775,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6775,14 +6792,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6790,14 +6809,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6805,14 +6826,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 9,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6820,14 +6843,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 10,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6835,14 +6860,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1005,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6850,14 +6877,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[2]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(2),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1006,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6865,14 +6894,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1008,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(0, false),
             slot: ::od_runtime::__private_v2::offset::<
                 ::od_runtime::__private_v2::Bytes<32>,
             >(
@@ -6880,14 +6911,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            extras: Some(&EXTRAS[3]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                Some(3),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1009,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(0, false),
             slot: ::od_runtime::__private_v2::offset::<
                 ::od_runtime::__private_v2::Bytes<32>,
             >(
@@ -6895,14 +6928,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            extras: Some(&EXTRAS[4]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                Some(4),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x100A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(0, false),
             slot: ::od_runtime::__private_v2::offset::<
                 ::od_runtime::__private_v2::Bytes<32>,
             >(
@@ -6910,14 +6945,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x100C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -6925,14 +6962,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x100D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6940,14 +6979,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1010,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6955,14 +6996,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[6]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(6),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1010,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6970,14 +7013,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[6]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(6),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1011,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6987,14 +7032,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[6]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(6),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1011,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7002,14 +7049,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[6]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(6),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1014,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7017,14 +7066,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[7]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(7),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1016,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7034,14 +7085,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[6]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(6),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1016,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7049,14 +7102,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1017,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7064,14 +7119,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1018,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7079,14 +7136,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[8]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(8),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1018,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7094,14 +7153,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[9]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(9),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1018,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7109,14 +7170,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[10]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(10),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1018,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7124,14 +7187,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[11]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(11),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1018,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7139,14 +7204,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1026,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7154,14 +7221,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1026,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Wo,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7169,14 +7238,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Wo,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1026,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7184,14 +7255,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1400,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7201,14 +7274,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1400,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7218,14 +7293,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[13]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(13),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1400,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7235,14 +7312,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[14]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(14),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1401,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7252,14 +7331,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1401,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7269,14 +7350,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[15]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(15),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1401,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7286,14 +7369,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[14]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(14),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1402,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7303,14 +7388,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1402,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7320,14 +7407,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[16]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(16),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1402,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7337,14 +7426,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[14]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(14),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1403,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7354,14 +7445,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1403,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7371,14 +7464,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[17]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(17),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1403,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7388,14 +7483,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[14]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(14),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7405,14 +7502,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[18]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(18),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7422,14 +7521,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[19]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(19),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7439,14 +7540,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7456,14 +7559,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7473,14 +7578,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7490,14 +7597,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7507,14 +7616,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7524,14 +7635,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7541,14 +7654,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7558,14 +7673,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[20]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(20),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7575,14 +7692,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[19]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(19),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7592,14 +7711,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[21]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(21),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7609,14 +7730,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7626,14 +7749,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7643,14 +7768,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7660,14 +7787,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7677,14 +7806,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7694,14 +7825,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7711,14 +7844,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[20]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(20),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7728,14 +7863,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[19]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(19),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7745,14 +7882,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[22]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(22),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7762,14 +7901,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7779,14 +7920,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7796,14 +7939,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7813,14 +7958,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7830,14 +7977,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7847,14 +7996,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7864,14 +8015,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[20]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(20),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7881,14 +8034,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[19]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(19),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7898,14 +8053,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[23]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(23),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7915,14 +8072,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7932,14 +8091,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7949,14 +8110,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7966,14 +8129,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7983,14 +8148,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8000,14 +8167,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1800,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8017,14 +8186,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[24]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(24),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1800,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8034,14 +8205,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[25]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(25),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1800,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8051,14 +8224,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[14]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(14),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1800,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -8068,14 +8243,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1800,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8085,14 +8262,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1800,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -8102,14 +8281,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1801,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8119,14 +8300,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[24]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(24),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1801,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8136,14 +8319,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[26]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(26),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1801,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8153,14 +8338,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[14]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(14),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1801,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -8170,14 +8357,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1801,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8187,14 +8376,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1801,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -8204,14 +8395,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1802,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8221,14 +8414,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[24]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(24),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1802,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8238,14 +8433,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[27]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(27),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1802,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8255,14 +8452,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[14]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(14),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1802,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -8272,14 +8471,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1802,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8289,14 +8490,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1802,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -8306,14 +8509,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1803,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8323,14 +8528,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[24]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(24),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1803,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8340,14 +8547,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[28]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(28),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1803,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8357,14 +8566,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[14]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(14),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1803,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -8374,14 +8585,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1803,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8391,14 +8604,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1803,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -8408,14 +8623,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8425,14 +8642,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[18]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(18),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8442,14 +8661,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[29]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(29),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8459,14 +8680,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8476,14 +8699,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8493,14 +8718,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8510,14 +8737,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8527,14 +8756,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8544,14 +8775,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8561,14 +8794,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8578,14 +8813,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[20]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(20),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8595,14 +8832,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[29]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(29),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8612,14 +8851,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[30]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(30),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8629,14 +8870,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8646,14 +8889,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8663,14 +8908,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8680,14 +8927,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8697,14 +8946,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8714,14 +8965,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8731,14 +8984,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[20]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(20),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8748,14 +9003,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[29]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(29),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8765,14 +9022,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[31]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(31),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8782,14 +9041,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8799,14 +9060,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8816,14 +9079,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8833,14 +9098,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8850,14 +9117,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8867,14 +9136,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8884,14 +9155,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[20]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(20),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8901,14 +9174,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[29]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(29),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8918,14 +9193,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[32]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(32),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8935,14 +9212,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8952,14 +9231,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8969,14 +9250,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8986,14 +9269,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9003,14 +9288,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9020,14 +9307,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2014,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9037,14 +9326,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2014,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9052,14 +9343,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[33]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(33),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2014,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9067,14 +9360,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[33]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(33),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2015,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9084,14 +9379,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2015,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9099,14 +9396,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[33]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(33),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2015,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9114,14 +9413,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[33]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(33),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2016,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9131,14 +9432,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2016,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9146,14 +9449,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[33]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(33),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2016,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9161,14 +9466,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[33]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(33),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2017,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9178,14 +9485,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2017,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9193,14 +9502,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[33]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(33),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2017,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9208,14 +9519,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[33]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(33),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2018,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9223,14 +9536,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[8]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                Some(8),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2018,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -9238,14 +9553,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2018,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -9253,14 +9570,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2018,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -9268,14 +9587,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2018,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -9283,14 +9604,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2026,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9298,14 +9621,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2026,
             sub: 1,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            access: ::od_runtime::od::Access::Wo,
-            flags: ::od_runtime::od::EntryFlags::new(0, false),
             slot: ::od_runtime::__private_v2::offset::<
                 ::od_runtime::__private_v2::Bytes<32>,
             >(
@@ -9313,14 +9638,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            extras: Some(&EXTRAS[4]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Wo,
+                false,
+                Some(4),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2026,
             sub: 2,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(0, false),
             slot: ::od_runtime::__private_v2::offset::<
                 ::od_runtime::__private_v2::Bytes<32>,
             >(
@@ -9328,14 +9655,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            extras: Some(&EXTRAS[4]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(4),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x204C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9343,14 +9672,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x204C,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9358,14 +9689,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: Some(&EXTRAS[34]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(34),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x204C,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9373,14 +9706,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: Some(&EXTRAS[34]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(34),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2050,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9388,14 +9723,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2071,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9403,14 +9740,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2077,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9418,14 +9757,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x20A0,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9433,14 +9774,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x20A1,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9448,14 +9791,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x20A2,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9463,14 +9808,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x20A3,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9478,14 +9825,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x20A4,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rww,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -9493,14 +9842,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rww,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x20A5,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rwr,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -9508,14 +9859,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rwr,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x20A6,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9525,14 +9878,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x20B8,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -9540,14 +9895,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2100,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9555,14 +9912,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3405,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9572,14 +9931,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[8]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(8),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3405,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9589,14 +9950,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3405,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9606,14 +9969,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3405,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9623,14 +9988,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3405,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9640,14 +10007,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3406,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9657,14 +10026,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[35]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(35),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3406,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9675,14 +10046,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3406,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9693,14 +10066,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3406,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9711,14 +10086,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3406,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9729,14 +10106,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3406,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9746,14 +10125,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3406,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9763,14 +10144,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3406,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9780,14 +10163,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3406,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9797,14 +10182,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3406,
             sub: 9,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9815,14 +10202,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3406,
             sub: 10,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9833,14 +10222,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3406,
             sub: 11,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9851,14 +10242,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3406,
             sub: 12,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9869,14 +10262,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3406,
             sub: 13,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9886,14 +10281,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3406,
             sub: 14,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9903,14 +10300,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3406,
             sub: 15,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9920,14 +10319,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3406,
             sub: 16,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9937,14 +10338,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3407,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -9954,14 +10357,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[8]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(8),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3407,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -9972,14 +10377,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3407,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -9989,14 +10396,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3407,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10006,14 +10415,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3407,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10023,14 +10434,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3412,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
@@ -10038,14 +10451,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3414,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10053,14 +10468,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3415,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10070,14 +10487,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3416,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10085,14 +10504,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3420,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -10100,14 +10521,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3421,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10115,14 +10538,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3422,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10130,14 +10555,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3423,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -10147,14 +10574,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3424,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -10162,14 +10591,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3425,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10177,14 +10608,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3426,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10194,14 +10627,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3427,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10211,14 +10646,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[36]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(36),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3427,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10226,14 +10663,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3427,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10243,14 +10682,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3427,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10260,14 +10701,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3430,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10275,14 +10718,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3431,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -10290,14 +10735,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3440,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10307,14 +10754,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[36]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(36),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3440,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10324,14 +10773,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3440,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10341,14 +10792,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3440,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10358,14 +10811,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3441,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10373,14 +10828,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3443,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -10388,14 +10845,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3444,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -10403,14 +10862,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3445,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10418,14 +10879,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3450,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Wo,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10433,14 +10896,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Wo,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3451,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10450,14 +10915,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3452,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -10465,14 +10932,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3453,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10480,14 +10949,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3454,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10495,14 +10966,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3455,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10512,14 +10985,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3456,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10529,14 +11004,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3457,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10546,14 +11023,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[36]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(36),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3457,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -10563,14 +11042,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3457,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -10580,14 +11061,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3457,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -10598,14 +11081,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3460,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10615,14 +11100,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[37]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(37),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3460,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10632,14 +11119,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3460,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10649,14 +11138,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3460,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10664,14 +11155,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3460,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10679,14 +11172,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3460,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10696,14 +11191,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3460,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10713,14 +11210,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3460,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10730,14 +11229,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3460,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10747,14 +11248,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3460,
             sub: 9,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10764,14 +11267,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3460,
             sub: 10,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10781,14 +11286,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3470,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10798,14 +11305,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[24]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(24),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3470,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
@@ -10815,14 +11324,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3470,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -10832,14 +11343,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3470,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Integer16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -10849,14 +11362,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3470,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Integer16,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -10866,14 +11381,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3470,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10883,14 +11400,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3471,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10898,14 +11417,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3472,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10913,14 +11434,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3474,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -10930,14 +11453,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[38]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(38),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3474,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10947,14 +11472,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3474,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10964,14 +11491,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3474,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10981,14 +11510,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3474,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -10998,14 +11529,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3474,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11015,14 +11548,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3474,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11032,14 +11567,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3474,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11049,14 +11586,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3474,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11066,14 +11605,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3474,
             sub: 9,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11083,14 +11624,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3474,
             sub: 10,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11100,14 +11643,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3474,
             sub: 11,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11117,14 +11662,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3474,
             sub: 12,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11134,14 +11681,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3474,
             sub: 13,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11151,14 +11700,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3474,
             sub: 14,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11168,14 +11719,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3475,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -11185,14 +11738,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[8]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(8),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3475,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11202,14 +11757,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3475,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11219,14 +11776,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3475,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11236,14 +11795,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3475,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11253,14 +11814,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3480,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11268,14 +11831,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3481,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -11285,14 +11850,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3481,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11302,14 +11869,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3481,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11319,14 +11888,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3482,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11334,14 +11905,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3483,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11349,14 +11922,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3484,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11364,14 +11939,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3490,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11379,14 +11956,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3491,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11396,14 +11975,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3492,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11411,14 +11992,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3493,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -11426,14 +12009,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3494,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -11443,14 +12028,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[39]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(39),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3494,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -11460,14 +12047,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3494,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11477,14 +12066,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3494,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -11494,14 +12085,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3494,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11511,14 +12104,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3494,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -11526,14 +12121,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3494,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -11541,14 +12138,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3496,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -11558,14 +12157,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[8]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(8),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3496,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11575,14 +12176,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[40]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(40),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3496,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11592,14 +12195,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[40]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(40),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3496,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11609,14 +12214,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[41]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(41),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3496,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -11626,14 +12233,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[42]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(42),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A0,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -11643,14 +12252,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[43]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(43),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A0,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11660,14 +12271,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A0,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11677,14 +12290,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A0,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11694,14 +12309,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A0,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11711,14 +12328,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A0,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11728,14 +12347,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A0,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11745,14 +12366,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A0,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11762,14 +12385,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A0,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11779,14 +12404,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A1,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -11796,14 +12423,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[43]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(43),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A1,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11811,14 +12440,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A1,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11826,14 +12457,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A1,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11841,14 +12474,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A1,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11856,14 +12491,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A1,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11871,14 +12508,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A1,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11886,14 +12525,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A1,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11901,14 +12542,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A1,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -11916,14 +12559,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A2,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -11933,14 +12578,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[43]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(43),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A2,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -11948,14 +12595,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A2,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -11963,14 +12612,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A2,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -11978,14 +12629,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A2,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -11993,14 +12646,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A2,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -12008,14 +12663,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A2,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -12023,14 +12680,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A2,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -12038,14 +12697,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A2,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -12053,14 +12714,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A3,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -12070,14 +12733,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[8]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(8),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A3,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -12087,14 +12752,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A3,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -12104,14 +12771,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A3,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -12121,14 +12790,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A3,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -12138,14 +12809,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x34A4,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -12153,14 +12826,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3501,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12168,14 +12843,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3502,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12183,14 +12860,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3506,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12198,14 +12877,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3509,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12213,14 +12894,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3522,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12228,14 +12911,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3524,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12243,14 +12928,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x352A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12258,14 +12945,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3533,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12273,14 +12962,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3534,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12288,14 +12979,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3535,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12303,14 +12996,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3537,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12318,14 +13013,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x353B,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12333,14 +13030,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3542,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12348,14 +13047,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3548,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12363,14 +13064,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x354B,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12380,14 +13083,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x354D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12395,14 +13100,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3558,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12410,14 +13117,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3559,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12425,14 +13134,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x355A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12440,14 +13151,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3562,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12455,14 +13168,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3565,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12470,14 +13185,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3568,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12485,14 +13202,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x356B,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12500,14 +13219,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x356E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12517,14 +13238,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x356F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12534,14 +13257,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3586,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12549,14 +13274,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3587,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12564,14 +13291,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x358E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12579,14 +13308,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x358F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12594,14 +13325,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3593,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12609,14 +13342,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3596,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12624,14 +13359,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3598,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12639,14 +13376,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x359C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12654,14 +13393,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x359D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12669,14 +13410,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x35A3,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12684,14 +13427,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x35A4,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12699,14 +13444,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x35AB,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12714,14 +13461,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x35AF,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12729,14 +13478,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x35B2,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12744,14 +13495,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x35B4,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12759,14 +13512,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x35BC,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12774,14 +13529,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x35C2,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12789,14 +13546,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x35C5,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12804,14 +13563,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x35C6,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12819,14 +13580,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x35C7,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12834,14 +13597,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x35CA,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12849,14 +13614,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x35CB,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12864,14 +13631,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x35E2,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12879,14 +13648,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x35EB,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Wo,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12894,14 +13665,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Wo,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x35F0,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Wo,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12909,14 +13682,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Wo,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x35FE,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Wo,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12924,14 +13699,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Wo,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x35FF,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12939,14 +13716,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3610,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12954,14 +13733,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3611,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12969,14 +13750,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3612,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -12984,14 +13767,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3617,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -12999,14 +13784,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3618,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13014,14 +13801,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x361A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13029,14 +13818,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x361D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13044,14 +13835,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3622,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13059,14 +13852,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3623,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13074,14 +13869,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3627,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13089,14 +13886,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3629,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13104,14 +13903,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3656,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned64,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(64, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u64,
             >(
@@ -13119,14 +13920,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned64,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3659,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13134,14 +13937,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x365B,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13149,14 +13954,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x365F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13164,14 +13971,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3660,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13179,14 +13988,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x366E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13194,14 +14005,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x366F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13209,14 +14022,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3683,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -13224,14 +14039,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3685,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -13239,14 +14056,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x36D0,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -13254,14 +14073,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x36D1,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13269,14 +14090,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x36D7,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13284,14 +14107,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x36E2,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -13299,14 +14124,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x36E5,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13314,14 +14141,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[44]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(44),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x36E6,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13329,14 +14158,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x36E7,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13344,14 +14175,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x36E8,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13359,14 +14192,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x36E9,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13374,14 +14209,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x36EA,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13389,14 +14226,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x36EB,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13404,14 +14243,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x36EC,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13419,14 +14260,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x36ED,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13434,14 +14277,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x36EE,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13449,14 +14294,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x36F6,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13464,14 +14311,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x36F9,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13479,14 +14328,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x36FC,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13494,14 +14345,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x3856,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -13509,14 +14362,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5000,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13526,14 +14381,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5001,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13541,14 +14398,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5002,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13556,14 +14415,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5003,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13571,14 +14432,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5009,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13586,14 +14449,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x500B,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13601,14 +14466,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5013,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13616,14 +14483,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5015,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13631,14 +14500,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5016,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13646,14 +14517,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5019,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13661,14 +14534,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5060,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13676,14 +14551,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5080,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13691,14 +14568,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5083,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13706,14 +14585,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5084,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13721,14 +14602,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5085,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13736,14 +14619,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x508C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13751,14 +14636,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x508F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13766,14 +14653,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5096,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13781,14 +14670,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5097,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13796,14 +14687,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5099,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13811,14 +14704,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x509A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13826,14 +14721,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x509C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13841,14 +14738,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x50B1,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13856,14 +14755,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x50B7,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13871,14 +14772,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x50B9,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13886,14 +14789,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x50BB,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13901,14 +14806,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x50BC,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13916,14 +14823,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x50BE,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13931,14 +14840,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x50E2,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13948,14 +14859,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x50FB,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13963,14 +14876,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x50FE,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13978,14 +14893,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5104,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -13993,14 +14910,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x510E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14008,14 +14927,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5121,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14023,14 +14944,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5128,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14038,14 +14961,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5175,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14053,14 +14978,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5176,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14068,14 +14995,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5177,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14083,14 +15012,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5179,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14098,14 +15029,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x517A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14113,14 +15046,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x517E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14128,14 +15063,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5184,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14143,14 +15080,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5187,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14158,14 +15097,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x518A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14173,14 +15114,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x518E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14188,14 +15131,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x51AE,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14203,14 +15148,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x51B0,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14218,14 +15165,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x51B3,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14233,14 +15182,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x51B8,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14248,14 +15199,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x51BA,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14263,14 +15216,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x51BB,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14278,14 +15233,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x51CB,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14293,14 +15250,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x51CC,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14308,14 +15267,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x51CD,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14323,14 +15284,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x51CE,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14338,14 +15301,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x51CF,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14353,14 +15318,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x51D0,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14368,14 +15335,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x51D1,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14383,14 +15352,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x51E7,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14398,14 +15369,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x51E8,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14413,14 +15386,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x51E9,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14428,14 +15403,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x51EC,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14443,14 +15420,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x51ED,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14458,14 +15437,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x51EE,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14473,14 +15454,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x51EF,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14488,14 +15471,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x51F0,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14503,14 +15488,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x520C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14518,14 +15505,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x520D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14533,14 +15522,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x520E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14550,14 +15541,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5251,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14565,14 +15558,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5252,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14580,14 +15575,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5253,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14595,14 +15592,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5254,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14610,14 +15609,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5255,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14625,14 +15626,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5256,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14640,14 +15643,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5257,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14655,14 +15660,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5258,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14670,14 +15677,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5259,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14685,14 +15694,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x525A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14700,14 +15711,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x525B,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14715,14 +15728,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x525C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14730,14 +15745,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x525D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14745,14 +15762,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x525E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14760,14 +15779,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x525F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14775,14 +15796,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5260,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14790,14 +15813,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5261,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14805,14 +15830,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5262,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14820,14 +15847,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5263,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14835,14 +15864,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5264,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14850,14 +15881,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5265,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14865,14 +15898,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5266,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14880,14 +15915,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5267,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14895,14 +15932,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x5268,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -14910,14 +15949,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6040,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -14925,14 +15966,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6041,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -14940,14 +15983,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6060,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
@@ -14955,14 +16000,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6061,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
@@ -14970,14 +16017,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6063,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -14985,14 +16034,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6064,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15000,14 +16051,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6065,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15015,14 +16068,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x606B,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15030,14 +16085,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x606C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15045,14 +16102,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x606D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -15060,14 +16119,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x606E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -15075,14 +16136,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6071,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -15090,14 +16153,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6072,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -15105,14 +16170,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6073,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -15120,14 +16187,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6077,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer16,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -15135,14 +16204,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x607A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15150,14 +16221,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: Some(&EXTRAS[45]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                Some(45),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x607C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15165,14 +16238,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x607D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15182,14 +16257,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x607D,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15197,14 +16274,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x607D,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15212,14 +16291,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6081,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15227,14 +16308,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[37]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                Some(37),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6083,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15242,14 +16325,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6084,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15257,14 +16342,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x608F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15274,14 +16361,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x608F,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15291,14 +16380,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[46]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(46),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x608F,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15308,14 +16399,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[6]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(6),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6091,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15323,14 +16416,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6091,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15338,14 +16433,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[6]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(6),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6091,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15355,14 +16452,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[6]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(6),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6092,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15370,14 +16469,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6092,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15385,14 +16486,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[6]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(6),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6092,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15400,14 +16503,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[6]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(6),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6098,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
@@ -15415,14 +16520,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6099,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15430,14 +16537,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6099,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15447,14 +16556,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[6]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(6),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6099,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15464,14 +16575,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x609A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15479,14 +16592,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60B1,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15494,14 +16609,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60B2,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -15509,14 +16626,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60B8,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -15524,14 +16643,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60B9,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -15539,14 +16660,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60BA,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15554,14 +16677,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60BB,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15569,14 +16694,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60BC,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15584,14 +16711,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60BD,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15599,14 +16728,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60C0,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -15614,14 +16745,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            extras: Some(&EXTRAS[47]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(47),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60C1,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15631,14 +16764,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[36]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(36),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60C1,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15648,14 +16783,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60C1,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15663,14 +16800,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60C1,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15680,14 +16819,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60C2,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15697,14 +16838,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60C2,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15712,14 +16855,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[6]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(6),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60C2,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -15727,14 +16872,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            extras: Some(&EXTRAS[48]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(48),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60C4,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15744,14 +16891,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[39]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(39),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60C4,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15761,14 +16910,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[37]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(37),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60C4,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15778,14 +16929,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[49]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                Some(49),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60C4,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15795,14 +16948,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60C4,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -15812,14 +16967,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60C4,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Wo,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15829,14 +16986,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[50]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Wo,
+                false,
+                Some(50),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60C4,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Wo,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15846,14 +17005,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Wo,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60D0,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15863,14 +17024,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60D0,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -15878,14 +17041,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            extras: Some(&EXTRAS[51]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(51),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60D0,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -15893,14 +17058,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            extras: Some(&EXTRAS[51]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(51),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60F4,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15908,14 +17075,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60FD,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15923,14 +17092,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60FE,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -15938,14 +17109,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60FE,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15953,14 +17126,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60FE,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15968,14 +17143,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60FF,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -15983,14 +17160,16 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6502,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -15998,15 +17177,28 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[52]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(52),
+            ),
         },
     ];
+    /// Metadata of every entry, sorted by `(index, sub)` (`ObjectDictionary::entries`): made
+    /// from [`ROWS`] and [`EXTRAS`] at compile time. A firmware, whose device reads the rows,
+    /// does not link it.
+    pub static ENTRIES: [::od_runtime::od::EntryInfo; 591] = ::od_runtime::__private_v2::entries(
+        &ROWS,
+        &EXTRAS,
+    );
     /// Capacities, defaults other than zero and limits, each distinct one once
     /// ([`EntryInfo::extras`](::od_runtime::od::EntryInfo::extras) points here).
     pub static EXTRAS: [::od_runtime::od::EntryExtras; 53] = [
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x20192),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x20192),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
@@ -16016,7 +17208,9 @@ Denotation=MOTOR.BRAKEIMM
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x80),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x80),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
@@ -16036,197 +17230,275 @@ Denotation=MOTOR.BRAKEIMM
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(1),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(1),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x80),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(4),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(4),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x6A),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x6A),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x3630304D),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x3630304D),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x140000),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x140000),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(2),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(2),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x200),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x200),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(255),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(255),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x300),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x300),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x400),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x400),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x500),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x500),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(1),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(1),
+            ),
             limits: Some(&LIMITS[1]),
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x60400010),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x60400010),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(2),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(2),
+            ),
             limits: Some(&LIMITS[1]),
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x60600008),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x60600008),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x607A0020),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x607A0020),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x60FF0020),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x60FF0020),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(5),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(5),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x180),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x180),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x280),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x280),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x380),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x380),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x480),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x480),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x60410010),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x60410010),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x60610008),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x60610008),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x60640020),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x60640020),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x606C0020),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x606C0020),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0xFFFFFFFF),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0xFFFFFFFF),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(1),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(1),
+            ),
             limits: Some(&LIMITS[2]),
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(16),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(16),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(3),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(3),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(10),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(10),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(14),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(14),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(6),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(6),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(320000),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(320000),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(70000),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(70000),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(150),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(150),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(8),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(8),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(125),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(125),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
@@ -16236,7 +17508,9 @@ Denotation=MOTOR.BRAKEIMM
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(1048576),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(1048576),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
@@ -16246,27 +17520,37 @@ Denotation=MOTOR.BRAKEIMM
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(-3),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(-3),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(9),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(9),
+            ),
             limits: Some(&LIMITS[5]),
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(1),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(1),
+            ),
             limits: Some(&LIMITS[6]),
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(1),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(1),
+            ),
             limits: Some(&LIMITS[7]),
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x65),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x65),
+            ),
             limits: None,
         },
     ];
@@ -18728,7 +20012,7 @@ Denotation=MOTOR.BRAKEIMM
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::lookup(&LOOKUP, &DIRECT, &ENTRIES, index, sub)
+            ::od_runtime::__private_v2::lookup(&LOOKUP, &DIRECT, &ROWS, index, sub)
         }
         /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
@@ -18749,7 +20033,10 @@ Denotation=MOTOR.BRAKEIMM
             match self.slot(pos) {
                 Some(slot) => {
                     ::od_runtime::__private_v2::first8(
-                        || ENTRIES.get(pos).map_or(0, |e| e.bits()),
+                        || {
+                            ::od_runtime::__private_v2::info_at::<Self>(pos)
+                                .map_or(0, |e| e.bits())
+                        },
                         slot,
                     )
                 }
@@ -18767,10 +20054,13 @@ Denotation=MOTOR.BRAKEIMM
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
             let (real_low, real_high) = (None, None);
-            match (ENTRIES.get(pos), self.slot_mut(pos)) {
-                (Some(info), Some(slot)) => {
+            match (
+                ::od_runtime::__private_v2::info_at::<Self>(pos),
+                self.slot_mut(pos),
+            ) {
+                (Ok(info), Some(slot)) => {
                     ::od_runtime::__private_v2::write(
-                        info,
+                        &info,
                         slot,
                         data,
                         real_low,
@@ -18809,7 +20099,7 @@ Denotation=MOTOR.BRAKEIMM
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
             ::od_runtime::__private_v2::check_mapping(
-                &ENTRIES,
+                &EXTRAS,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
                 mapping,
@@ -18820,7 +20110,7 @@ Denotation=MOTOR.BRAKEIMM
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
             ::od_runtime::__private_v2::check_mapping(
-                &ENTRIES,
+                &EXTRAS,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
                 mapping,
@@ -29540,8 +30830,12 @@ Denotation=MOTOR.BRAKEIMM
     }
     unsafe impl ::od_runtime::__private_v2::Table for Dictionary {
         #[inline(always)]
-        fn entries() -> &'static [::od_runtime::od::EntryInfo] {
-            &ENTRIES
+        fn rows() -> &'static [::od_runtime::__private_v2::Row] {
+            &ROWS
+        }
+        #[inline(always)]
+        fn extras() -> &'static [::od_runtime::od::EntryExtras] {
+            &EXTRAS
         }
     }
     impl ::od_runtime::od::ObjectDictionary for Dictionary {
@@ -29568,6 +30862,24 @@ Denotation=MOTOR.BRAKEIMM
             let pos = Self::position(index, sub)?;
             ENTRIES.get(pos).ok_or(::od_runtime::od::AbortCode::NO_OBJECT)
         }
+        #[cfg_attr(target_os = "none", inline(never))]
+        #[cfg_attr(not(target_os = "none"), inline)]
+        fn entry(
+            &self,
+            index: u16,
+            sub: u8,
+        ) -> Result<::od_runtime::od::EntryInfo, ::od_runtime::od::AbortCode> {
+            Self::position(index, sub)
+                .and_then(::od_runtime::__private_v2::info_at::<Self>)
+        }
+        #[inline]
+        fn entry_count(&self) -> usize {
+            ROWS.len()
+        }
+        #[inline]
+        fn entry_at(&self, pos: usize) -> Option<::od_runtime::od::EntryInfo> {
+            ::od_runtime::__private_v2::info_at::<Self>(pos).ok()
+        }
         fn read(
             &self,
             index: u16,
@@ -29575,9 +30887,9 @@ Denotation=MOTOR.BRAKEIMM
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
             let pos = Self::position(index, sub)?;
-            match (ENTRIES.get(pos), self.slot(pos)) {
-                (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v2::read(info, slot, buf)
+            match (::od_runtime::__private_v2::info_at::<Self>(pos), self.slot(pos)) {
+                (Ok(info), Some(slot)) => {
+                    ::od_runtime::__private_v2::read(&info, slot, buf)
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -29592,9 +30904,13 @@ Denotation=MOTOR.BRAKEIMM
             self.write_at(pos, data)
         }
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
-            for (pos, info) in ENTRIES.iter().enumerate() {
-                if area.contains(info.index) && let Some(slot) = self.slot_mut(pos) {
-                    ::od_runtime::__private_v2::set_default(info, slot, node_id);
+            for (pos, row) in ROWS.iter().enumerate() {
+                if area.contains(row.index) && let Some(slot) = self.slot_mut(pos) {
+                    ::od_runtime::__private_v2::set_default(
+                        &row.info(&EXTRAS),
+                        slot,
+                        node_id,
+                    );
                 }
             }
         }

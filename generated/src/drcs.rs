@@ -3133,21 +3133,20 @@ PDOMapping=0
             0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2, 0, 0, 0, 0, 2, 4, 6, 6, 0, 0, 0, 0,
             0,
         ],
-        entries: &ENTRIES,
+        entries: &ROWS,
     };
     /// Where a host finds each object's run of entries in one read (1 KB per page of
-    /// 256 indices); empty on a microcontroller, which binary-searches `ENTRIES`.
+    /// 256 indices); empty on a microcontroller, which binary-searches `ROWS`.
     static DIRECT: [u32; ::od_runtime::__private_v2::direct_len(13)] = ::od_runtime::__private_v2::direct(
-        &ENTRIES,
+        &ROWS,
     );
-    /// Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.
-    pub static ENTRIES: [::od_runtime::od::EntryInfo; 308] = [
-        ::od_runtime::od::EntryInfo {
+    /// The entry table the device reads, sorted by `(index, sub)`: 8 bytes a row.
+    /// [`ENTRIES`] is made from it.
+    pub static ROWS: [::od_runtime::__private_v2::Row; 308] = [
+        ::od_runtime::__private_v2::Row {
             index: 0x1000,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3155,14 +3154,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[0]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(0),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1001,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3170,14 +3171,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1002,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3185,14 +3188,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3202,14 +3207,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3217,14 +3224,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3232,14 +3241,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3247,14 +3258,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3262,14 +3275,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3277,14 +3292,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3292,14 +3309,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3307,14 +3326,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3322,14 +3343,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1005,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3337,14 +3360,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[1]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(1),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1006,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3352,14 +3377,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1007,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3367,14 +3394,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1008,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(0, false),
             slot: ::od_runtime::__private_v2::offset::<
                 ::od_runtime::__private_v2::Bytes<32>,
             >(
@@ -3382,14 +3411,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            extras: Some(&EXTRAS[2]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                Some(2),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1009,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(0, false),
             slot: ::od_runtime::__private_v2::offset::<
                 ::od_runtime::__private_v2::Bytes<32>,
             >(
@@ -3397,14 +3428,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            extras: Some(&EXTRAS[3]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                Some(3),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x100A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(0, false),
             slot: ::od_runtime::__private_v2::offset::<
                 ::od_runtime::__private_v2::Bytes<32>,
             >(
@@ -3412,14 +3445,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            extras: Some(&EXTRAS[4]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                Some(4),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x100C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -3427,14 +3462,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x100D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3442,14 +3479,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1010,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3459,14 +3498,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1010,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3474,14 +3515,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1011,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3491,14 +3534,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1011,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3506,14 +3551,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1012,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3521,14 +3568,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[6]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(6),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1014,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3536,14 +3585,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[7]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(7),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1015,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -3551,14 +3602,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1017,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -3566,14 +3619,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1018,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3581,14 +3636,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[8]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(8),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1018,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3596,14 +3653,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[9]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(9),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1018,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3611,14 +3670,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[10]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(10),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1018,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3626,14 +3687,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1018,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3641,14 +3704,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1019,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3656,14 +3721,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[11]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(11),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1020,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3673,14 +3740,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1020,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3688,14 +3757,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1020,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3703,14 +3774,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1200,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3720,14 +3793,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1200,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3737,14 +3812,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[13]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(13),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1200,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3754,14 +3831,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[14]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(14),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1400,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3772,14 +3851,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1400,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3789,14 +3870,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[15]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(15),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1400,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3806,14 +3889,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[16]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(16),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1401,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3824,14 +3909,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1401,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3841,14 +3928,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[17]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(17),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1401,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3858,14 +3947,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[16]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(16),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1402,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3876,14 +3967,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1402,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3893,14 +3986,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[18]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(18),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1402,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3910,14 +4005,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[16]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(16),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1403,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3928,14 +4025,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1403,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3945,14 +4044,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[19]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(19),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1403,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3962,14 +4063,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[16]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(16),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1404,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3980,14 +4083,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1404,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3997,14 +4102,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[20]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(20),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1404,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4014,14 +4121,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[16]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(16),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1405,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4032,14 +4141,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1405,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4049,14 +4160,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[20]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(20),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1405,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4066,14 +4179,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[16]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(16),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1406,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4084,14 +4199,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1406,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4101,14 +4218,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[20]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(20),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1406,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4118,14 +4237,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[16]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(16),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1407,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4136,14 +4257,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1407,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4153,14 +4276,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[20]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(20),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1407,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4170,14 +4295,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[16]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(16),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4187,14 +4314,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4202,14 +4331,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[21]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(21),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4217,14 +4348,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4232,14 +4365,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4247,14 +4382,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4262,14 +4399,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4277,14 +4416,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4292,14 +4433,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4307,14 +4450,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4324,14 +4469,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4339,14 +4486,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4354,14 +4503,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4369,14 +4520,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4384,14 +4537,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4399,14 +4554,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4414,14 +4571,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4429,14 +4588,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4444,14 +4605,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4461,14 +4624,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4476,14 +4641,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4491,14 +4658,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4506,14 +4675,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4521,14 +4692,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4536,14 +4709,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4551,14 +4726,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4566,14 +4743,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4581,14 +4760,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4598,14 +4779,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4613,14 +4796,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4628,14 +4813,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4643,14 +4830,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4658,14 +4847,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4673,14 +4864,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4688,14 +4881,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4703,14 +4898,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4718,14 +4915,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1604,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4735,14 +4934,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1604,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4750,14 +4951,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1604,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4765,14 +4968,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1604,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4780,14 +4985,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1604,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4795,14 +5002,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1604,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4810,14 +5019,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1604,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4825,14 +5036,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1604,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4840,14 +5053,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1604,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4855,14 +5070,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1605,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4872,14 +5089,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1605,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4887,14 +5106,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1605,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4902,14 +5123,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1605,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4917,14 +5140,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1605,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4932,14 +5157,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1605,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4947,14 +5174,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1605,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4962,14 +5191,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1605,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4977,14 +5208,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1605,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4992,14 +5225,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1606,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5009,14 +5244,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1606,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5024,14 +5261,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1606,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5039,14 +5278,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1606,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5054,14 +5295,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1606,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5069,14 +5312,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1606,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5084,14 +5329,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1606,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5099,14 +5346,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1606,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5114,14 +5363,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1606,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5129,14 +5380,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1607,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5146,14 +5399,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1607,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5161,14 +5416,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1607,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5176,14 +5433,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1607,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5191,14 +5450,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1607,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5206,14 +5467,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1607,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5221,14 +5484,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1607,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5236,14 +5501,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1607,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5251,14 +5518,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1607,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5266,14 +5535,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1800,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5284,14 +5555,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[22]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(22),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1800,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5301,14 +5574,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[23]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(23),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1800,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5318,14 +5593,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[16]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(16),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1800,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5335,14 +5612,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1800,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5352,14 +5631,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1800,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5369,14 +5650,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1801,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5387,14 +5670,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[22]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(22),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1801,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5404,14 +5689,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[24]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(24),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1801,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5421,14 +5708,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[16]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(16),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1801,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5438,14 +5727,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1801,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5455,14 +5746,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1801,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5472,14 +5765,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1802,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5490,14 +5785,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[22]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(22),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1802,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5507,14 +5804,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[25]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(25),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1802,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5524,14 +5823,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[16]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(16),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1802,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5541,14 +5842,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1802,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5558,14 +5861,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1802,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5575,14 +5880,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1803,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5593,14 +5900,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[22]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(22),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1803,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5610,14 +5919,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[26]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(26),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1803,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5627,14 +5938,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[16]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(16),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1803,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5644,14 +5957,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1803,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5661,14 +5976,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1803,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5678,14 +5995,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1804,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5696,14 +6015,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[22]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(22),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1804,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5713,14 +6034,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[20]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(20),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1804,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5730,14 +6053,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[16]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(16),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1804,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5747,14 +6072,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1804,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5764,14 +6091,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1804,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5781,14 +6110,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1805,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5799,14 +6130,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[22]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(22),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1805,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5816,14 +6149,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[20]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(20),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1805,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5833,14 +6168,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[16]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(16),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1805,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5850,14 +6187,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1805,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5867,14 +6206,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1805,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5884,14 +6225,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1806,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5902,14 +6245,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[22]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(22),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1806,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5919,14 +6264,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[20]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(20),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1806,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5936,14 +6283,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[16]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(16),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1806,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5953,14 +6302,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1806,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5970,14 +6321,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1806,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5987,14 +6340,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1807,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6005,14 +6360,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[22]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(22),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1807,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6022,14 +6379,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[20]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(20),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1807,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6039,14 +6398,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[16]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(16),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1807,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -6056,14 +6417,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1807,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6073,14 +6436,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1807,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -6090,14 +6455,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6107,14 +6474,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6122,14 +6491,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[27]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(27),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6137,14 +6508,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6152,14 +6525,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6167,14 +6542,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6182,14 +6559,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6197,14 +6576,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6212,14 +6593,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6227,14 +6610,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6244,14 +6629,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6259,14 +6646,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6274,14 +6663,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6289,14 +6680,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6304,14 +6697,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6319,14 +6714,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6334,14 +6731,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6349,14 +6748,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6364,14 +6765,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6381,14 +6784,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6396,14 +6801,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6411,14 +6818,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6426,14 +6835,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6441,14 +6852,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6456,14 +6869,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6471,14 +6886,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6486,14 +6903,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6501,14 +6920,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6518,14 +6939,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6533,14 +6956,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6548,14 +6973,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6563,14 +6990,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6578,14 +7007,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6593,14 +7024,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6608,14 +7041,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6623,14 +7058,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6638,14 +7075,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A04,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6655,14 +7094,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A04,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6670,14 +7111,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A04,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6685,14 +7128,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A04,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6700,14 +7145,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A04,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6715,14 +7162,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A04,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6730,14 +7179,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A04,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6745,14 +7196,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A04,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6760,14 +7213,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A04,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6775,14 +7230,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A05,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6792,14 +7249,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A05,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6807,14 +7266,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A05,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6822,14 +7283,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A05,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6837,14 +7300,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A05,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6852,14 +7317,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A05,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6867,14 +7334,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A05,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6882,14 +7351,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A05,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6897,14 +7368,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A05,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6912,14 +7385,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A06,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6929,14 +7404,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A06,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6944,14 +7421,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A06,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6959,14 +7438,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A06,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6974,14 +7455,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A06,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6989,14 +7472,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A06,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7004,14 +7489,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A06,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7019,14 +7506,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A06,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7034,14 +7523,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A06,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7049,14 +7540,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A07,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7066,14 +7559,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A07,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7081,14 +7576,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A07,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7096,14 +7593,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A07,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7111,14 +7610,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A07,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7126,14 +7627,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A07,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7141,14 +7644,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A07,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7156,14 +7661,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A07,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7171,14 +7678,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A07,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7186,14 +7695,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1F80,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7201,14 +7712,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[8]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(8),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2001,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7218,14 +7731,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2001,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7233,14 +7748,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2001,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7248,14 +7765,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2002,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7263,14 +7782,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2003,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7278,14 +7799,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2004,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7293,14 +7816,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2005,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7308,14 +7833,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2100,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7323,14 +7850,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2101,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7338,14 +7867,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2102,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7353,14 +7884,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2103,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7368,14 +7901,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x603F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7383,14 +7918,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6040,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7398,14 +7935,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6041,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7413,14 +7952,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6060,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
@@ -7428,14 +7969,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6061,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
@@ -7443,14 +7986,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6062,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -7458,14 +8003,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6064,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -7473,14 +8020,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x606B,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -7488,14 +8037,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x606C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -7503,14 +8054,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x606D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7518,14 +8071,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x606E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7533,14 +8088,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x606F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7548,14 +8105,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6070,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7563,14 +8122,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x607A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -7578,14 +8139,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x607C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -7593,14 +8156,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x607D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7610,14 +8175,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x607D,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -7625,14 +8192,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x607D,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -7640,14 +8209,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: Some(&EXTRAS[28]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(28),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x607E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7655,14 +8226,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6081,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7670,14 +8243,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6083,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7685,14 +8260,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6084,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7700,14 +8277,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x608F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7717,14 +8296,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x608F,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7734,14 +8315,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[28]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(28),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x608F,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7751,14 +8334,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6091,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7768,14 +8353,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6091,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7783,14 +8370,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6091,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7798,14 +8387,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6092,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7815,14 +8406,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6092,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7830,14 +8423,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[29]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(29),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6092,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7845,14 +8440,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6098,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
@@ -7860,14 +8457,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            extras: Some(&EXTRAS[30]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                Some(30),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6099,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7877,14 +8476,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6099,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7892,14 +8493,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6099,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7907,14 +8510,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60FF,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -7922,14 +8527,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6402,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7937,14 +8544,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: Some(&EXTRAS[31]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(31),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6404,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(0, false),
             slot: ::od_runtime::__private_v2::offset::<
                 ::od_runtime::__private_v2::Bytes<32>,
             >(
@@ -7952,14 +8561,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            extras: Some(&EXTRAS[32]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(32),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6502,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7967,14 +8578,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[33]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(33),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x67FF,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7982,20 +8595,35 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[34]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(34),
+            ),
         },
     ];
+    /// Metadata of every entry, sorted by `(index, sub)` (`ObjectDictionary::entries`): made
+    /// from [`ROWS`] and [`EXTRAS`] at compile time. A firmware, whose device reads the rows,
+    /// does not link it.
+    pub static ENTRIES: [::od_runtime::od::EntryInfo; 308] = ::od_runtime::__private_v2::entries(
+        &ROWS,
+        &EXTRAS,
+    );
     /// Capacities, defaults other than zero and limits, each distinct one once
     /// ([`EntryInfo::extras`](::od_runtime::od::EntryInfo::extras) points here).
     pub static EXTRAS: [::od_runtime::od::EntryExtras; 35] = [
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF7C0192),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0xFF7C0192),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x80),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x80),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
@@ -8015,32 +8643,44 @@ PDOMapping=0
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(1),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(1),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000100),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x80000100),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x80),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(4),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(4),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x151),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x151),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x5A),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x5A),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
@@ -8050,102 +8690,142 @@ PDOMapping=0
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(2),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(2),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x600),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x600),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x580),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x580),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x200),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x200),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0xFF),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000300),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x80000300),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000400),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x80000400),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000500),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x80000500),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x80000000),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x60400010),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x60400010),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(5),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(5),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x180),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x180),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000280),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x80000280),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000380),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x80000380),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000480),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x80000480),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x60410010),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x60410010),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(1000),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(1000),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(70),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(70),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(17),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(17),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x9),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x9),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
@@ -8155,12 +8835,16 @@ PDOMapping=0
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x25),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x25),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x440192),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x440192),
+            ),
             limits: None,
         },
     ];
@@ -9458,7 +10142,7 @@ PDOMapping=0
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::lookup(&LOOKUP, &DIRECT, &ENTRIES, index, sub)
+            ::od_runtime::__private_v2::lookup(&LOOKUP, &DIRECT, &ROWS, index, sub)
         }
         /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
@@ -9479,7 +10163,10 @@ PDOMapping=0
             match self.slot(pos) {
                 Some(slot) => {
                     ::od_runtime::__private_v2::first8(
-                        || ENTRIES.get(pos).map_or(0, |e| e.bits()),
+                        || {
+                            ::od_runtime::__private_v2::info_at::<Self>(pos)
+                                .map_or(0, |e| e.bits())
+                        },
                         slot,
                     )
                 }
@@ -9497,10 +10184,13 @@ PDOMapping=0
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
             let (real_low, real_high) = (None, None);
-            match (ENTRIES.get(pos), self.slot_mut(pos)) {
-                (Some(info), Some(slot)) => {
+            match (
+                ::od_runtime::__private_v2::info_at::<Self>(pos),
+                self.slot_mut(pos),
+            ) {
+                (Ok(info), Some(slot)) => {
                     ::od_runtime::__private_v2::write(
-                        info,
+                        &info,
                         slot,
                         data,
                         real_low,
@@ -9539,7 +10229,7 @@ PDOMapping=0
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
             ::od_runtime::__private_v2::check_mapping(
-                &ENTRIES,
+                &EXTRAS,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
                 mapping,
@@ -9550,7 +10240,7 @@ PDOMapping=0
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
             ::od_runtime::__private_v2::check_mapping(
-                &ENTRIES,
+                &EXTRAS,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
                 mapping,
@@ -14551,8 +15241,12 @@ PDOMapping=0
     }
     unsafe impl ::od_runtime::__private_v2::Table for Dictionary {
         #[inline(always)]
-        fn entries() -> &'static [::od_runtime::od::EntryInfo] {
-            &ENTRIES
+        fn rows() -> &'static [::od_runtime::__private_v2::Row] {
+            &ROWS
+        }
+        #[inline(always)]
+        fn extras() -> &'static [::od_runtime::od::EntryExtras] {
+            &EXTRAS
         }
     }
     impl ::od_runtime::od::ObjectDictionary for Dictionary {
@@ -14578,6 +15272,24 @@ PDOMapping=0
             let pos = Self::position(index, sub)?;
             ENTRIES.get(pos).ok_or(::od_runtime::od::AbortCode::NO_OBJECT)
         }
+        #[cfg_attr(target_os = "none", inline(never))]
+        #[cfg_attr(not(target_os = "none"), inline)]
+        fn entry(
+            &self,
+            index: u16,
+            sub: u8,
+        ) -> Result<::od_runtime::od::EntryInfo, ::od_runtime::od::AbortCode> {
+            Self::position(index, sub)
+                .and_then(::od_runtime::__private_v2::info_at::<Self>)
+        }
+        #[inline]
+        fn entry_count(&self) -> usize {
+            ROWS.len()
+        }
+        #[inline]
+        fn entry_at(&self, pos: usize) -> Option<::od_runtime::od::EntryInfo> {
+            ::od_runtime::__private_v2::info_at::<Self>(pos).ok()
+        }
         fn read(
             &self,
             index: u16,
@@ -14585,9 +15297,9 @@ PDOMapping=0
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
             let pos = Self::position(index, sub)?;
-            match (ENTRIES.get(pos), self.slot(pos)) {
-                (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v2::read(info, slot, buf)
+            match (::od_runtime::__private_v2::info_at::<Self>(pos), self.slot(pos)) {
+                (Ok(info), Some(slot)) => {
+                    ::od_runtime::__private_v2::read(&info, slot, buf)
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -14602,9 +15314,13 @@ PDOMapping=0
             self.write_at(pos, data)
         }
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
-            for (pos, info) in ENTRIES.iter().enumerate() {
-                if area.contains(info.index) && let Some(slot) = self.slot_mut(pos) {
-                    ::od_runtime::__private_v2::set_default(info, slot, node_id);
+            for (pos, row) in ROWS.iter().enumerate() {
+                if area.contains(row.index) && let Some(slot) = self.slot_mut(pos) {
+                    ::od_runtime::__private_v2::set_default(
+                        &row.info(&EXTRAS),
+                        slot,
+                        node_id,
+                    );
                 }
             }
         }

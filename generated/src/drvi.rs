@@ -3130,21 +3130,20 @@ PDOMapping=0
             24, 32, 40, 48, 56, 0, 0, 2, 2, 2, 2, 2, 2, 7, 9, 9, 9, 0, 0, 0, 0, 0, 0, 0,
             0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 0, 0, 0, 0, 0, 2, 4, 4, 6, 0,
         ],
-        entries: &ENTRIES,
+        entries: &ROWS,
     };
     /// Where a host finds each object's run of entries in one read (1 KB per page of
-    /// 256 indices); empty on a microcontroller, which binary-searches `ENTRIES`.
+    /// 256 indices); empty on a microcontroller, which binary-searches `ROWS`.
     static DIRECT: [u32; ::od_runtime::__private_v2::direct_len(8)] = ::od_runtime::__private_v2::direct(
-        &ENTRIES,
+        &ROWS,
     );
-    /// Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.
-    pub static ENTRIES: [::od_runtime::od::EntryInfo; 308] = [
-        ::od_runtime::od::EntryInfo {
+    /// The entry table the device reads, sorted by `(index, sub)`: 8 bytes a row.
+    /// [`ENTRIES`] is made from it.
+    pub static ROWS: [::od_runtime::__private_v2::Row; 308] = [
+        ::od_runtime::__private_v2::Row {
             index: 0x1000,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3152,14 +3151,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[0]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(0),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1001,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3167,14 +3168,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1002,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3182,14 +3185,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3199,14 +3204,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3214,14 +3221,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3229,14 +3238,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3244,14 +3255,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3259,14 +3272,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3274,14 +3289,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3289,14 +3306,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3304,14 +3323,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1003,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3319,14 +3340,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1005,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3334,14 +3357,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[1]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(1),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1006,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3349,14 +3374,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1007,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3364,14 +3391,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1008,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(0, false),
             slot: ::od_runtime::__private_v2::offset::<
                 ::od_runtime::__private_v2::Bytes<32>,
             >(
@@ -3379,14 +3408,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            extras: Some(&EXTRAS[2]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                Some(2),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1009,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(0, false),
             slot: ::od_runtime::__private_v2::offset::<
                 ::od_runtime::__private_v2::Bytes<32>,
             >(
@@ -3394,14 +3425,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            extras: Some(&EXTRAS[3]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                Some(3),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x100A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(0, false),
             slot: ::od_runtime::__private_v2::offset::<
                 ::od_runtime::__private_v2::Bytes<32>,
             >(
@@ -3409,14 +3442,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            extras: Some(&EXTRAS[4]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                Some(4),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x100C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -3424,14 +3459,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x100D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3439,14 +3476,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1010,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3456,14 +3495,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1010,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3471,14 +3512,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1011,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3488,14 +3531,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1011,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3503,14 +3548,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1014,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3518,14 +3565,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[6]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(6),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1015,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -3533,14 +3582,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1017,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -3548,14 +3599,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1018,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3563,14 +3616,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[7]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(7),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1018,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3578,14 +3633,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[8]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(8),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1018,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3593,14 +3650,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[9]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(9),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1018,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3608,14 +3667,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1018,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3623,14 +3684,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1400,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3641,14 +3704,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[10]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(10),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1400,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3658,14 +3723,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[11]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(11),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1400,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3675,14 +3742,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1401,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3693,14 +3762,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[10]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(10),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1401,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3710,14 +3781,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[13]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(13),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1401,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3727,14 +3800,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1402,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3745,14 +3820,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[10]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(10),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1402,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3762,14 +3839,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[14]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(14),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1402,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3779,14 +3858,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1403,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3797,14 +3878,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[10]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(10),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1403,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3814,14 +3897,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[15]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(15),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1403,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3831,14 +3916,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1404,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3849,14 +3936,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[10]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(10),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1404,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3866,14 +3955,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[16]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(16),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1404,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3883,14 +3974,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1405,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3901,14 +3994,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[10]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(10),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1405,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3918,14 +4013,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[17]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(17),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1405,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3935,14 +4032,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1406,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3953,14 +4052,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[10]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(10),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1406,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -3970,14 +4071,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[17]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(17),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1406,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -3987,14 +4090,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1407,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4005,14 +4110,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[10]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(10),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1407,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4022,14 +4129,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[17]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(17),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1407,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4039,14 +4148,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4056,14 +4167,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4073,14 +4186,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[18]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(18),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4090,14 +4205,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4107,14 +4224,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4124,14 +4243,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4141,14 +4262,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4158,14 +4281,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4175,14 +4300,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4192,14 +4319,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4209,14 +4338,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4226,14 +4357,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4243,14 +4376,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4260,14 +4395,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4277,14 +4414,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4294,14 +4433,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4311,14 +4452,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4328,14 +4471,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1601,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4345,14 +4490,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4362,14 +4509,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4379,14 +4528,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4396,14 +4547,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4413,14 +4566,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4430,14 +4585,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4447,14 +4604,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4464,14 +4623,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4481,14 +4642,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1602,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4498,14 +4661,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4515,14 +4680,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4532,14 +4699,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4549,14 +4718,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4566,14 +4737,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4583,14 +4756,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4600,14 +4775,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4617,14 +4794,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4634,14 +4813,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1603,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4651,14 +4832,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1604,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4668,14 +4851,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1604,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4685,14 +4870,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1604,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4702,14 +4889,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1604,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4719,14 +4908,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1604,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4736,14 +4927,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1604,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4753,14 +4946,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1604,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4770,14 +4965,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1604,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4787,14 +4984,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1604,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4804,14 +5003,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1605,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4821,14 +5022,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1605,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4838,14 +5041,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1605,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4855,14 +5060,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1605,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4872,14 +5079,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1605,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4889,14 +5098,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1605,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4906,14 +5117,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1605,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4923,14 +5136,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1605,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4940,14 +5155,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1605,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4957,14 +5174,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1606,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -4974,14 +5193,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1606,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -4991,14 +5212,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1606,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5008,14 +5231,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1606,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5025,14 +5250,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1606,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5042,14 +5269,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1606,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5059,14 +5288,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1606,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5076,14 +5307,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1606,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5093,14 +5326,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1606,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5110,14 +5345,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1607,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5127,14 +5364,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1607,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5144,14 +5383,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1607,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5161,14 +5402,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1607,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5178,14 +5421,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1607,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5195,14 +5440,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1607,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5212,14 +5459,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1607,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5229,14 +5478,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1607,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5246,14 +5497,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1607,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5263,14 +5516,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1800,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5281,14 +5536,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[19]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(19),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1800,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5299,14 +5556,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[20]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(20),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1800,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5316,14 +5575,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1800,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5333,14 +5594,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1800,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5351,14 +5614,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1800,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5368,14 +5633,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: Some(&EXTRAS[21]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(21),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1801,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5386,14 +5653,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[19]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(19),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1801,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5404,14 +5673,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[22]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(22),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1801,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5421,14 +5692,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1801,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5438,14 +5711,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1801,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5456,14 +5731,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1801,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5473,14 +5750,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1802,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5491,14 +5770,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[19]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(19),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1802,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5509,14 +5790,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[23]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(23),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1802,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5526,14 +5809,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1802,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5543,14 +5828,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1802,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5561,14 +5848,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1802,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5578,14 +5867,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1803,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5596,14 +5887,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[19]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(19),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1803,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5614,14 +5907,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[24]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(24),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1803,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5631,14 +5926,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1803,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5648,14 +5945,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1803,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5666,14 +5965,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1803,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5683,14 +5984,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1804,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5701,14 +6004,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[19]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(19),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1804,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5719,14 +6024,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[17]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(17),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1804,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5736,14 +6043,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1804,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5753,14 +6062,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1804,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5771,14 +6082,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1804,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5788,14 +6101,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1805,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5806,14 +6121,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[19]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(19),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1805,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5824,14 +6141,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[17]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(17),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1805,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5841,14 +6160,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1805,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5858,14 +6179,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1805,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5876,14 +6199,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1805,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5893,14 +6218,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1806,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5911,14 +6238,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[19]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(19),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1806,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -5929,14 +6258,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[17]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(17),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1806,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5946,14 +6277,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1806,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5963,14 +6296,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1806,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -5981,14 +6316,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1806,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -5998,14 +6335,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1807,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6016,14 +6355,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[19]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(19),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1807,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6034,14 +6375,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[17]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(17),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1807,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6051,14 +6394,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1807,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -6068,14 +6413,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1807,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6086,14 +6433,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1807,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -6103,14 +6452,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6120,14 +6471,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6137,14 +6490,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[25]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(25),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6154,14 +6509,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6171,14 +6528,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6188,14 +6547,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6205,14 +6566,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6222,14 +6585,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6239,14 +6604,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6256,14 +6623,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6273,14 +6642,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6290,14 +6661,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6307,14 +6680,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6324,14 +6699,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6341,14 +6718,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6358,14 +6737,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6375,14 +6756,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6392,14 +6775,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6409,14 +6794,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6426,14 +6813,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6443,14 +6832,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6460,14 +6851,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6477,14 +6870,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6494,14 +6889,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6511,14 +6908,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6528,14 +6927,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6545,14 +6946,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A02,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6562,14 +6965,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6579,14 +6984,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6596,14 +7003,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6613,14 +7022,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6630,14 +7041,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6647,14 +7060,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6664,14 +7079,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6681,14 +7098,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6698,14 +7117,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A03,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6715,14 +7136,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A04,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6732,14 +7155,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A04,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6749,14 +7174,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A04,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6766,14 +7193,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A04,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6783,14 +7212,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A04,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6800,14 +7231,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A04,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6817,14 +7250,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A04,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6834,14 +7269,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A04,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6851,14 +7288,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A04,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6868,14 +7307,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A05,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -6885,14 +7326,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A05,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6902,14 +7345,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A05,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6919,14 +7364,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A05,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6936,14 +7383,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A05,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6953,14 +7402,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A05,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6970,14 +7421,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A05,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -6987,14 +7440,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A05,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7004,14 +7459,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A05,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7021,14 +7478,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A06,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7038,14 +7497,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A06,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7055,14 +7516,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A06,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7072,14 +7535,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A06,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7089,14 +7554,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A06,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7106,14 +7573,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A06,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7123,14 +7592,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A06,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7140,14 +7611,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A06,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7157,14 +7630,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A06,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7174,14 +7649,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A07,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7191,14 +7668,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A07,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7208,14 +7687,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A07,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7225,14 +7706,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A07,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7242,14 +7725,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A07,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7259,14 +7744,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A07,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7276,14 +7763,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A07,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7293,14 +7782,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A07,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7310,14 +7801,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A07,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7327,14 +7820,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1F80,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7342,14 +7837,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[7]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(7),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2001,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7359,14 +7856,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[10]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(10),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2001,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7374,14 +7873,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2001,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7389,14 +7890,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2002,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7404,14 +7907,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2003,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7419,14 +7924,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2004,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7434,14 +7941,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2006,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7449,14 +7958,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2010,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7464,14 +7975,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[26]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(26),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2011,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7481,14 +7994,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[19]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(19),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2011,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7496,14 +8011,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: Some(&EXTRAS[27]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(27),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2011,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7511,14 +8028,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2011,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7526,14 +8045,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: Some(&EXTRAS[28]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(28),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2011,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7541,14 +8062,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2011,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7556,14 +8079,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: Some(&EXTRAS[29]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(29),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2012,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7573,14 +8098,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[10]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(10),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2012,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7588,14 +8115,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[30]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(30),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2012,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7603,14 +8132,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: Some(&EXTRAS[31]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(31),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2013,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7618,14 +8149,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: Some(&EXTRAS[32]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(32),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2014,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7633,14 +8166,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2015,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7648,14 +8183,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[26]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(26),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x603F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7663,14 +8200,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6040,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7678,14 +8217,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6041,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7693,14 +8234,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6060,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
@@ -7708,14 +8251,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6061,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
@@ -7723,14 +8268,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6062,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -7738,14 +8285,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6064,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -7753,14 +8302,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6065,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7768,14 +8319,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6066,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7783,14 +8336,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x606B,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -7798,14 +8353,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x606C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -7813,14 +8370,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x606F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7828,14 +8387,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6070,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -7843,14 +8404,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6071,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -7858,14 +8421,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            extras: Some(&EXTRAS[33]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                Some(33),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6074,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer16,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -7873,14 +8438,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6077,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer16,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i16,
             >(
@@ -7888,14 +8455,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x607A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -7903,14 +8472,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x607C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -7918,14 +8489,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x607D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7935,14 +8508,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[10]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(10),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x607D,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -7950,14 +8525,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x607D,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -7965,14 +8542,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x607E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -7980,14 +8559,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x607F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -7995,14 +8576,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[34]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(34),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6081,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8010,14 +8593,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6083,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8025,14 +8610,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6084,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8040,14 +8627,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6087,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8055,14 +8644,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6091,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8072,14 +8663,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[10]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(10),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6091,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8087,14 +8680,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6091,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8102,14 +8697,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6092,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8119,14 +8716,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[10]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(10),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6092,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8134,14 +8733,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[21]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(21),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6092,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8149,14 +8750,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6098,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
@@ -8164,14 +8767,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            extras: Some(&EXTRAS[35]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                Some(35),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6099,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -8181,14 +8786,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[10]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(10),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6099,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8196,14 +8803,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6099,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8211,14 +8820,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x609A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -8226,14 +8837,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[36]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(36),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x60FF,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -8241,20 +8854,35 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                None,
+            ),
         },
     ];
+    /// Metadata of every entry, sorted by `(index, sub)` (`ObjectDictionary::entries`): made
+    /// from [`ROWS`] and [`EXTRAS`] at compile time. A firmware, whose device reads the rows,
+    /// does not link it.
+    pub static ENTRIES: [::od_runtime::od::EntryInfo; 308] = ::od_runtime::__private_v2::entries(
+        &ROWS,
+        &EXTRAS,
+    );
     /// Capacities, defaults other than zero and limits, each distinct one once
     /// ([`EntryInfo::extras`](::od_runtime::od::EntryInfo::extras) points here).
     pub static EXTRAS: [::od_runtime::od::EntryExtras; 37] = [
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF7A0192),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0xFF7A0192),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x80),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x80),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
@@ -8274,107 +8902,149 @@ PDOMapping=0
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(1),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(1),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x80),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(4),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(4),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x97),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x97),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x5A),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x5A),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(2),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(2),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x200),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x200),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0xFF),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0xFF),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000300),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x80000300),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000400),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x80000400),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000500),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x80000500),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000680),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x80000680),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x80000000),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x80000000),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x60400010),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x60400010),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(5),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(5),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x180),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x180),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(100),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(100),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000280),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x80000280),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000380),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x80000380),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x80000480),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x80000480),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x60410010),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x60410010),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
@@ -8384,32 +9054,44 @@ PDOMapping=0
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(1),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(1),
+            ),
             limits: Some(&LIMITS[1]),
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(10000),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(10000),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(10),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(10),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(1),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(1),
+            ),
             limits: Some(&LIMITS[0]),
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(50),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(50),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(10),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(10),
+            ),
             limits: Some(&LIMITS[2]),
         },
         ::od_runtime::od::EntryExtras {
@@ -8419,12 +9101,16 @@ PDOMapping=0
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(65535),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(65535),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(37),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(37),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
@@ -9740,7 +10426,7 @@ PDOMapping=0
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::lookup(&LOOKUP, &DIRECT, &ENTRIES, index, sub)
+            ::od_runtime::__private_v2::lookup(&LOOKUP, &DIRECT, &ROWS, index, sub)
         }
         /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
@@ -9761,7 +10447,10 @@ PDOMapping=0
             match self.slot(pos) {
                 Some(slot) => {
                     ::od_runtime::__private_v2::first8(
-                        || ENTRIES.get(pos).map_or(0, |e| e.bits()),
+                        || {
+                            ::od_runtime::__private_v2::info_at::<Self>(pos)
+                                .map_or(0, |e| e.bits())
+                        },
                         slot,
                     )
                 }
@@ -9779,10 +10468,13 @@ PDOMapping=0
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
             let (real_low, real_high) = (None, None);
-            match (ENTRIES.get(pos), self.slot_mut(pos)) {
-                (Some(info), Some(slot)) => {
+            match (
+                ::od_runtime::__private_v2::info_at::<Self>(pos),
+                self.slot_mut(pos),
+            ) {
+                (Ok(info), Some(slot)) => {
                     ::od_runtime::__private_v2::write(
-                        info,
+                        &info,
                         slot,
                         data,
                         real_low,
@@ -9821,7 +10513,7 @@ PDOMapping=0
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
             ::od_runtime::__private_v2::check_mapping(
-                &ENTRIES,
+                &EXTRAS,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
                 mapping,
@@ -9832,7 +10524,7 @@ PDOMapping=0
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
             ::od_runtime::__private_v2::check_mapping(
-                &ENTRIES,
+                &EXTRAS,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
                 mapping,
@@ -14983,8 +15675,12 @@ PDOMapping=0
     }
     unsafe impl ::od_runtime::__private_v2::Table for Dictionary {
         #[inline(always)]
-        fn entries() -> &'static [::od_runtime::od::EntryInfo] {
-            &ENTRIES
+        fn rows() -> &'static [::od_runtime::__private_v2::Row] {
+            &ROWS
+        }
+        #[inline(always)]
+        fn extras() -> &'static [::od_runtime::od::EntryExtras] {
+            &EXTRAS
         }
     }
     impl ::od_runtime::od::ObjectDictionary for Dictionary {
@@ -15010,6 +15706,24 @@ PDOMapping=0
             let pos = Self::position(index, sub)?;
             ENTRIES.get(pos).ok_or(::od_runtime::od::AbortCode::NO_OBJECT)
         }
+        #[cfg_attr(target_os = "none", inline(never))]
+        #[cfg_attr(not(target_os = "none"), inline)]
+        fn entry(
+            &self,
+            index: u16,
+            sub: u8,
+        ) -> Result<::od_runtime::od::EntryInfo, ::od_runtime::od::AbortCode> {
+            Self::position(index, sub)
+                .and_then(::od_runtime::__private_v2::info_at::<Self>)
+        }
+        #[inline]
+        fn entry_count(&self) -> usize {
+            ROWS.len()
+        }
+        #[inline]
+        fn entry_at(&self, pos: usize) -> Option<::od_runtime::od::EntryInfo> {
+            ::od_runtime::__private_v2::info_at::<Self>(pos).ok()
+        }
         fn read(
             &self,
             index: u16,
@@ -15017,9 +15731,9 @@ PDOMapping=0
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
             let pos = Self::position(index, sub)?;
-            match (ENTRIES.get(pos), self.slot(pos)) {
-                (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v2::read(info, slot, buf)
+            match (::od_runtime::__private_v2::info_at::<Self>(pos), self.slot(pos)) {
+                (Ok(info), Some(slot)) => {
+                    ::od_runtime::__private_v2::read(&info, slot, buf)
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -15034,9 +15748,13 @@ PDOMapping=0
             self.write_at(pos, data)
         }
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
-            for (pos, info) in ENTRIES.iter().enumerate() {
-                if area.contains(info.index) && let Some(slot) = self.slot_mut(pos) {
-                    ::od_runtime::__private_v2::set_default(info, slot, node_id);
+            for (pos, row) in ROWS.iter().enumerate() {
+                if area.contains(row.index) && let Some(slot) = self.slot_mut(pos) {
+                    ::od_runtime::__private_v2::set_default(
+                        &row.info(&EXTRAS),
+                        slot,
+                        node_id,
+                    );
                 }
             }
         }

@@ -595,21 +595,20 @@ PDOMapping=0
         extra: &[
             0, 0, 0, 0, 0, 0, 0, 0, 0, 4, 0, 0, 0, 0, 0, 0, 3, 0, 0, 0, 0, 0, 0, 0, 0,
         ],
-        entries: &ENTRIES,
+        entries: &ROWS,
     };
     /// Where a host finds each object's run of entries in one read (1 KB per page of
-    /// 256 indices); empty on a microcontroller, which binary-searches `ENTRIES`.
+    /// 256 indices); empty on a microcontroller, which binary-searches `ROWS`.
     static DIRECT: [u32; ::od_runtime::__private_v2::direct_len(7)] = ::od_runtime::__private_v2::direct(
-        &ENTRIES,
+        &ROWS,
     );
-    /// Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.
-    pub static ENTRIES: [::od_runtime::od::EntryInfo; 47] = [
-        ::od_runtime::od::EntryInfo {
+    /// The entry table the device reads, sorted by `(index, sub)`: 8 bytes a row.
+    /// [`ENTRIES`] is made from it.
+    pub static ROWS: [::od_runtime::__private_v2::Row; 47] = [
+        ::od_runtime::__private_v2::Row {
             index: 0x1000,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -617,14 +616,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[0]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(0),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1001,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -632,14 +633,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1008,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(0, false),
             slot: ::od_runtime::__private_v2::offset::<
                 ::od_runtime::__private_v2::Bytes<32>,
             >(
@@ -647,14 +650,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            extras: Some(&EXTRAS[1]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                Some(1),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1017,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -662,14 +667,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1018,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -679,14 +686,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[2]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(2),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1018,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -694,14 +703,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[3]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(3),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1018,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -709,14 +720,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[4]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(4),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1018,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -724,14 +737,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[4]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(4),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1018,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -739,14 +754,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1400,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -757,14 +774,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1400,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -774,14 +793,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[6]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(6),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1400,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -791,14 +812,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[7]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(7),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -808,14 +831,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[8]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(8),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -825,14 +850,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[9]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(9),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -842,14 +869,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[10]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(10),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1600,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -859,14 +888,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[11]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(11),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1800,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Const,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -877,14 +908,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Const,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1800,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -894,14 +927,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[12]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(12),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1800,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -911,14 +946,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[7]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(7),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -928,14 +965,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[2]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(2),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -945,14 +984,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[13]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(13),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -962,14 +1003,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[14]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(14),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -979,14 +1022,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[15]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(15),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A00,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -996,14 +1041,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[16]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(16),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -1013,14 +1060,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -1030,14 +1079,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[17]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(17),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x1A01,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -1047,14 +1098,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[18]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(18),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2001,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer24,
-            access: ::od_runtime::od::Access::Rwr,
-            flags: ::od_runtime::od::EntryFlags::new(24, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -1062,14 +1115,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer24,
                 0,
             ),
-            extras: Some(&EXTRAS[19]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rwr,
+                true,
+                Some(19),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2002,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Boolean,
-            access: ::od_runtime::od::Access::Rwr,
-            flags: ::od_runtime::od::EntryFlags::new(1, true),
             slot: ::od_runtime::__private_v2::offset::<
                 bool,
             >(
@@ -1077,14 +1132,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Boolean,
                 0,
             ),
-            extras: Some(&EXTRAS[4]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rwr,
+                true,
+                Some(4),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2003,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Real32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 f32,
             >(
@@ -1092,14 +1149,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Real32,
                 0,
             ),
-            extras: Some(&EXTRAS[20]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(20),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2004,
             sub: 0,
             data_type: ::od_runtime::od::DataType::OctetString,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(0, false),
             slot: ::od_runtime::__private_v2::offset::<
                 ::od_runtime::__private_v2::Bytes<32>,
             >(
@@ -1107,14 +1166,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::OctetString,
                 256,
             ),
-            extras: Some(&EXTRAS[21]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(21),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2005,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned40,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(40, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u64,
             >(
@@ -1122,14 +1183,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned40,
                 0,
             ),
-            extras: Some(&EXTRAS[22]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(22),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2006,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -1137,14 +1200,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[8]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(8),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2006,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -1152,14 +1217,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: Some(&EXTRAS[4]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(4),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2006,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -1167,14 +1234,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: Some(&EXTRAS[23]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(23),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2006,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(16, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -1182,14 +1251,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: Some(&EXTRAS[8]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(8),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x2007,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -1197,14 +1268,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[24]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(24),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6040,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Rww,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -1212,14 +1285,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rww,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6041,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(16, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u16,
             >(
@@ -1227,14 +1302,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6060,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            access: ::od_runtime::od::Access::Rww,
-            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
@@ -1242,14 +1319,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            extras: Some(&EXTRAS[25]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rww,
+                true,
+                Some(25),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6061,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i8,
             >(
@@ -1257,14 +1336,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6064,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -1272,14 +1353,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x606C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -1287,14 +1370,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: None,
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                true,
+                None,
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x607A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            access: ::od_runtime::od::Access::Rww,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 i32,
             >(
@@ -1302,14 +1387,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            extras: Some(&EXTRAS[26]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rww,
+                true,
+                Some(26),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6099,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Ro,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
@@ -1317,14 +1404,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[5]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Ro,
+                false,
+                Some(5),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6099,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -1334,14 +1423,16 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[27]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                Some(27),
+            ),
         },
-        ::od_runtime::od::EntryInfo {
+        ::od_runtime::__private_v2::Row {
             index: 0x6099,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(32, true),
             slot: ::od_runtime::__private_v2::offset::<
                 u32,
             >(
@@ -1351,15 +1442,28 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            extras: Some(&EXTRAS[28]),
+            meta: ::od_runtime::__private_v2::meta(
+                ::od_runtime::od::Access::Rw,
+                true,
+                Some(28),
+            ),
         },
     ];
+    /// Metadata of every entry, sorted by `(index, sub)` (`ObjectDictionary::entries`): made
+    /// from [`ROWS`] and [`EXTRAS`] at compile time. A firmware, whose device reads the rows,
+    /// does not link it.
+    pub static ENTRIES: [::od_runtime::od::EntryInfo; 47] = ::od_runtime::__private_v2::entries(
+        &ROWS,
+        &EXTRAS,
+    );
     /// Capacities, defaults other than zero and limits, each distinct one once
     /// ([`EntryInfo::extras`](::od_runtime::od::EntryInfo::extras) points here).
     pub static EXTRAS: [::od_runtime::od::EntryExtras; 29] = [
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x20192),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x20192),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
@@ -1369,92 +1473,128 @@ PDOMapping=0
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(4),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(4),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x1234),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x1234),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x1),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x1),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(2),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(2),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x200),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x200),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(255),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(255),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(3),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(3),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x60400010),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x60400010),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x50008),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x50008),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x60600008),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x60600008),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x180),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x180),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x60410010),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x60410010),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x60610008),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x60610008),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x20010018),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x20010018),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x20020001),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x20020001),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x60640020),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x60640020),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x606C0020),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x606C0020),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(-5),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(-5),
+            ),
             limits: Some(&LIMITS[0]),
         },
         ::od_runtime::od::EntryExtras {
@@ -1469,22 +1609,30 @@ PDOMapping=0
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(0x123456789),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(0x123456789),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(2),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(2),
+            ),
             limits: Some(&LIMITS[1]),
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::NodeIdPlus(0x10),
+            default: ::od_runtime::od::DefaultValue::NodeIdPlus(
+                ::od_runtime::od::Bits64::int(0x10),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(1),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(1),
+            ),
             limits: Some(&LIMITS[2]),
         },
         ::od_runtime::od::EntryExtras {
@@ -1494,12 +1642,16 @@ PDOMapping=0
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(1000),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(1000),
+            ),
             limits: None,
         },
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(100),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(100),
+            ),
             limits: None,
         },
     ];
@@ -1745,7 +1897,7 @@ PDOMapping=0
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::lookup(&LOOKUP, &DIRECT, &ENTRIES, index, sub)
+            ::od_runtime::__private_v2::lookup(&LOOKUP, &DIRECT, &ROWS, index, sub)
         }
         /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
@@ -1766,7 +1918,10 @@ PDOMapping=0
             match self.slot(pos) {
                 Some(slot) => {
                     ::od_runtime::__private_v2::first8(
-                        || ENTRIES.get(pos).map_or(0, |e| e.bits()),
+                        || {
+                            ::od_runtime::__private_v2::info_at::<Self>(pos)
+                                .map_or(0, |e| e.bits())
+                        },
                         slot,
                     )
                 }
@@ -1787,10 +1942,13 @@ PDOMapping=0
                 29 => (Some(0.0), Some(10.0)),
                 _ => (None, None),
             };
-            match (ENTRIES.get(pos), self.slot_mut(pos)) {
-                (Some(info), Some(slot)) => {
+            match (
+                ::od_runtime::__private_v2::info_at::<Self>(pos),
+                self.slot_mut(pos),
+            ) {
+                (Ok(info), Some(slot)) => {
                     ::od_runtime::__private_v2::write(
-                        info,
+                        &info,
                         slot,
                         data,
                         real_low,
@@ -1829,7 +1987,7 @@ PDOMapping=0
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
             ::od_runtime::__private_v2::check_mapping(
-                &ENTRIES,
+                &EXTRAS,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
                 mapping,
@@ -1840,7 +1998,7 @@ PDOMapping=0
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
             ::od_runtime::__private_v2::check_mapping(
-                &ENTRIES,
+                &EXTRAS,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
                 mapping,
@@ -2624,8 +2782,12 @@ PDOMapping=0
     }
     unsafe impl ::od_runtime::__private_v2::Table for Dictionary {
         #[inline(always)]
-        fn entries() -> &'static [::od_runtime::od::EntryInfo] {
-            &ENTRIES
+        fn rows() -> &'static [::od_runtime::__private_v2::Row] {
+            &ROWS
+        }
+        #[inline(always)]
+        fn extras() -> &'static [::od_runtime::od::EntryExtras] {
+            &EXTRAS
         }
     }
     impl ::od_runtime::od::ObjectDictionary for Dictionary {
@@ -2651,6 +2813,24 @@ PDOMapping=0
             let pos = Self::position(index, sub)?;
             ENTRIES.get(pos).ok_or(::od_runtime::od::AbortCode::NO_OBJECT)
         }
+        #[cfg_attr(target_os = "none", inline(never))]
+        #[cfg_attr(not(target_os = "none"), inline)]
+        fn entry(
+            &self,
+            index: u16,
+            sub: u8,
+        ) -> Result<::od_runtime::od::EntryInfo, ::od_runtime::od::AbortCode> {
+            Self::position(index, sub)
+                .and_then(::od_runtime::__private_v2::info_at::<Self>)
+        }
+        #[inline]
+        fn entry_count(&self) -> usize {
+            ROWS.len()
+        }
+        #[inline]
+        fn entry_at(&self, pos: usize) -> Option<::od_runtime::od::EntryInfo> {
+            ::od_runtime::__private_v2::info_at::<Self>(pos).ok()
+        }
         fn read(
             &self,
             index: u16,
@@ -2658,9 +2838,9 @@ PDOMapping=0
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
             let pos = Self::position(index, sub)?;
-            match (ENTRIES.get(pos), self.slot(pos)) {
-                (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v2::read(info, slot, buf)
+            match (::od_runtime::__private_v2::info_at::<Self>(pos), self.slot(pos)) {
+                (Ok(info), Some(slot)) => {
+                    ::od_runtime::__private_v2::read(&info, slot, buf)
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -2675,9 +2855,13 @@ PDOMapping=0
             self.write_at(pos, data)
         }
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
-            for (pos, info) in ENTRIES.iter().enumerate() {
-                if area.contains(info.index) && let Some(slot) = self.slot_mut(pos) {
-                    ::od_runtime::__private_v2::set_default(info, slot, node_id);
+            for (pos, row) in ROWS.iter().enumerate() {
+                if area.contains(row.index) && let Some(slot) = self.slot_mut(pos) {
+                    ::od_runtime::__private_v2::set_default(
+                        &row.info(&EXTRAS),
+                        slot,
+                        node_id,
+                    );
                 }
             }
         }

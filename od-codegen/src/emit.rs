@@ -162,11 +162,11 @@ fn default_value_tokens(e: &PEntry<'_>) -> TokenStream {
         Def::None => quote!(::od_runtime::od::DefaultValue::None),
         Def::Int(v, hex) => {
             let v = int64(*v, *hex);
-            quote!(::od_runtime::od::DefaultValue::Int(#v))
+            quote!(::od_runtime::od::DefaultValue::Int(::od_runtime::od::Bits64::int(#v)))
         }
         Def::NodeId(o, hex) => {
             let o = int64(*o, *hex);
-            quote!(::od_runtime::od::DefaultValue::NodeIdPlus(#o))
+            quote!(::od_runtime::od::DefaultValue::NodeIdPlus(::od_runtime::od::Bits64::int(#o)))
         }
         Def::Real(f) if e.dt == DataType::Real32 => {
             let f = lit::real(*f, true);
@@ -174,7 +174,7 @@ fn default_value_tokens(e: &PEntry<'_>) -> TokenStream {
         }
         Def::Real(f) => {
             let f = lit::real(*f, false);
-            quote!(::od_runtime::od::DefaultValue::Real64(#f))
+            quote!(::od_runtime::od::DefaultValue::Real64(::od_runtime::od::Bits64::real(#f)))
         }
         Def::Bytes(b) => {
             let b = lit::bytes(b);
@@ -299,17 +299,41 @@ pub(crate) fn tables(
     // Each distinct limits and extras value once; entries point at theirs.
     let (limits, limits_of) = dedup(plan.entries.iter().map(limits_tokens));
     let (extras, extras_of) = dedup(plan.entries.iter().zip(&limits_of).map(|(e, l)| extras_tokens(e, *l)));
+    if extras.len() > od_runtime::__private_v2::MAX_EXTRAS {
+        sink.general(
+            eds::diag::Severity::Error,
+            crate::diag::TOO_MANY_OBJECTS,
+            format!(
+                "the device's entries have {} distinct capacities, defaults and limits, more than the {} \
+                 the generated entry table can number",
+                extras.len(),
+                od_runtime::__private_v2::MAX_EXTRAS
+            ),
+        );
+    }
     let n_entries = plan.entries.len();
-    let entries = {
-        let doc =
-            vec!["Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.".to_owned()];
+    let rows = {
+        let doc = vec![
+            "The entry table the device reads, sorted by `(index, sub)`: 8 bytes a row.".to_owned(),
+            "[`ENTRIES`] is made from it.".to_owned(),
+        ];
         if plan.entries.is_empty() {
             let d = crate::text::doc_tokens(&doc);
-            parts.put(pretty(quote!(#d pub static ENTRIES: [::od_runtime::od::EntryInfo; 0] = [];), 1, Nest::Item))
+            let rt = rt();
+            parts.put(pretty(quote!(#d pub static ROWS: [#rt::Row; 0] = [];), 1, Nest::Item))
         } else {
-            let mut t = Text::with_capacity(plan.entries.len() * 560 + 200);
+            let mut t = Text::with_capacity(plan.entries.len() * 520 + 200);
             t.doc(4, &doc);
-            t.line(4, &["pub static ENTRIES: [::od_runtime::od::EntryInfo; ", &n_entries.to_string(), "] = ["]);
+            t.line(
+                4,
+                &[
+                    "pub static ROWS: [::od_runtime::",
+                    crate::support::RUNTIME_PRIVATE,
+                    "::Row; ",
+                    &n_entries.to_string(),
+                    "] = [",
+                ],
+            );
             for (e, x) in plan.entries.iter().zip(&extras_of) {
                 entry_row(&mut t, e, *x);
             }
@@ -319,11 +343,18 @@ pub(crate) fn tables(
     };
     let nx = proc_macro2::Literal::usize_unsuffixed(extras.len());
     let nl = proc_macro2::Literal::usize_unsuffixed(limits.len());
+    let ne = proc_macro2::Literal::usize_unsuffixed(n_entries);
     let names = names_table(plan, names, parts);
+    let rt = rt();
     quote! {
         #lookup
 
-        #entries
+        #rows
+
+        /// Metadata of every entry, sorted by `(index, sub)` (`ObjectDictionary::entries`): made
+        /// from [`ROWS`] and [`EXTRAS`] at compile time. A firmware, whose device reads the rows,
+        /// does not link it.
+        pub static ENTRIES: [::od_runtime::od::EntryInfo; #ne] = #rt::entries(&ROWS, &EXTRAS);
 
         /// Capacities, defaults other than zero and limits, each distinct one once
         /// ([`EntryInfo::extras`](::od_runtime::od::EntryInfo::extras) points here).
@@ -354,13 +385,7 @@ fn rust_type_text(ty: Ty) -> String {
     }
 }
 
-/// The size in bits a row's flags give a fixed-size value (0 for a variable-length type): the
-/// runtime's own size of the entry's data type, so the two cannot differ.
-fn fixed_bits(e: &PEntry<'_>) -> u8 {
-    crate::entry::to_runtime_type(e.dt).bits() as u8
-}
-
-/// One row of `ENTRIES` (an element of the array, 8 columns in), as tokens.
+/// One row of `ROWS` (an element of the array, 8 columns in), as tokens.
 fn entry_row_tokens(e: &PEntry<'_>, x: Option<usize>) -> TokenStream {
     let rt = rt();
     let index = lit::hex(e.index as u64, 4);
@@ -368,34 +393,32 @@ fn entry_row_tokens(e: &PEntry<'_>, x: Option<usize>) -> TokenStream {
     let dt = data_type_variant(e.dt);
     let access = access_variant(e.entry.access);
     let pdo = e.entry.pdo_mapping;
-    let size = proc_macro2::Literal::u8_unsuffixed(fixed_bits(e));
     let field = format_ident!("{}", e.field);
     let ty = rust_type(e.ty);
     let cap = proc_macro2::Literal::u32_unsuffixed(if let Ty::Bytes(_) = e.ty { e.bits } else { 0 });
     let extras = match x {
         Some(i) => {
             let i = proc_macro2::Literal::usize_unsuffixed(i);
-            quote!(Some(&EXTRAS[#i]))
+            quote!(Some(#i))
         }
         None => quote!(None),
     };
     quote! {
-        ::od_runtime::od::EntryInfo {
+        #rt::Row {
             index: #index,
             sub: #sub,
             data_type: ::od_runtime::od::DataType::#dt,
-            access: ::od_runtime::od::Access::#access,
-            flags: ::od_runtime::od::EntryFlags::new(#size, #pdo),
             slot: #rt::offset::<#ty>(::core::mem::offset_of!(Dictionary, #field), ::od_runtime::od::DataType::#dt, #cap),
-            extras: #extras,
+            meta: #rt::meta(::od_runtime::od::Access::#access, #pdo, #extras),
         }
     }
 }
 
-/// One row of `ENTRIES` as text: the layout prettyplease gives a row (the struct literal
-/// broken field by field, the `offset` call broken at its turbofish and arguments, the
-/// `offset_of!` on one line, broken inside its parentheses, or broken after each argument);
-/// a row whose name is too long for that is laid out by prettyplease.
+/// One row of `ROWS` as text: the layout prettyplease gives a row (the struct literal broken
+/// field by field, the `offset` call broken at its turbofish and arguments, the `offset_of!`
+/// on one line, broken inside its parentheses, or broken after each argument; the `meta` call,
+/// never within the margin, broken after each argument); a row whose name is too long for
+/// that is laid out by prettyplease.
 fn entry_row(t: &mut Text, e: &PEntry<'_>, x: Option<usize>) {
     let f = e.field.as_str();
     let one_line = fits(16 + "::core::mem::offset_of!(Dictionary, ".len() + f.len() + "),".len());
@@ -405,24 +428,14 @@ fn entry_row(t: &mut Text, e: &PEntry<'_>, x: Option<usize>) {
         t.push(&pretty(entry_row_tokens(e, x), 2, Nest::Array));
         return;
     }
+    let rt = crate::support::RUNTIME_PRIVATE;
     let dt = data_type_name(e.dt);
     let cap = if let Ty::Bytes(_) = e.ty { e.bits } else { 0 };
-    t.line(8, &["::od_runtime::od::EntryInfo {"]);
+    t.line(8, &["::od_runtime::", rt, "::Row {"]);
     t.line(12, &["index: ", &format!("0x{:04X}", e.index), ","]);
     t.line(12, &["sub: ", &e.sub.to_string(), ","]);
     t.line(12, &["data_type: ::od_runtime::od::DataType::", dt, ","]);
-    t.line(12, &["access: ::od_runtime::od::Access::", access_name(e.entry.access), ","]);
-    t.line(
-        12,
-        &[
-            "flags: ::od_runtime::od::EntryFlags::new(",
-            &fixed_bits(e).to_string(),
-            ", ",
-            if e.entry.pdo_mapping { "true" } else { "false" },
-            "),",
-        ],
-    );
-    t.line(12, &["slot: ::od_runtime::", crate::support::RUNTIME_PRIVATE, "::offset::<"]);
+    t.line(12, &["slot: ::od_runtime::", rt, "::offset::<"]);
     t.line(16, &[&ty, ","]);
     t.line(12, &[">("]);
     if one_line {
@@ -440,10 +453,14 @@ fn entry_row(t: &mut Text, e: &PEntry<'_>, x: Option<usize>) {
     t.line(16, &["::od_runtime::od::DataType::", dt, ","]);
     t.line(16, &[&cap.to_string(), ","]);
     t.line(12, &["),"]);
+    t.line(12, &["meta: ::od_runtime::", rt, "::meta("]);
+    t.line(16, &["::od_runtime::od::Access::", access_name(e.entry.access), ","]);
+    t.line(16, &[if e.entry.pdo_mapping { "true" } else { "false" }, ","]);
     match x {
-        Some(i) => t.line(12, &["extras: Some(&EXTRAS[", &i.to_string(), "]),"]),
-        None => t.line(12, &["extras: None,"]),
+        Some(i) => t.line(16, &["Some(", &i.to_string(), "),"]),
+        None => t.line(16, &["None,"]),
     }
+    t.line(12, &["),"]);
     t.line(8, &["},"]);
 }
 
@@ -950,7 +967,7 @@ fn inherent_impl(
             /// `Err(NO_SUB_INDEX)` if only the sub-index is.
             #[inline]
             pub fn position(index: u16, sub: u8) -> Result<usize, ::od_runtime::od::AbortCode> {
-                #rt::lookup(&LOOKUP, &DIRECT, &ENTRIES, index, sub)
+                #rt::lookup(&LOOKUP, &DIRECT, &ROWS, index, sub)
             }
 
             /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
@@ -969,7 +986,7 @@ fn inherent_impl(
             #[inline(always)]
             fn read_at(&self, pos: usize) -> [u8; 8] {
                 match self.slot(pos) {
-                    Some(slot) => #rt::first8(|| ENTRIES.get(pos).map_or(0, |e| e.bits()), slot),
+                    Some(slot) => #rt::first8(|| #rt::info_at::<Self>(pos).map_or(0, |e| e.bits()), slot),
                     None => [0; 8],
                 }
             }
@@ -981,8 +998,8 @@ fn inherent_impl(
             #[cfg_attr(not(target_os = "none"), inline)]
             fn write_at(&mut self, pos: usize, data: &[u8]) -> Result<(), ::od_runtime::od::AbortCode> {
                 #real_limits
-                match (ENTRIES.get(pos), self.slot_mut(pos)) {
-                    (Some(info), Some(slot)) => #rt::write(info, slot, data, real_low, real_high),
+                match (#rt::info_at::<Self>(pos), self.slot_mut(pos)) {
+                    (Ok(info), Some(slot)) => #rt::write(&info, slot, data, real_low, real_high),
                     _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
                 }
             }
@@ -1005,12 +1022,12 @@ fn inherent_impl(
             /// `PDO_LENGTH_EXCEEDED` (0x0604_0042), `PARAMETER_INCOMPATIBLE` (0x0604_0043), and
             /// `NO_OBJECT`/`NO_SUB_INDEX` for an object the dictionary does not have.
             pub fn check_rpdo_mapping(mapping: &[u32]) -> Result<u32, ::od_runtime::od::AbortCode> {
-                #rt::check_mapping(&ENTRIES, &LOOKUP, ::od_runtime::pdo::Direction::Receive, mapping)
+                #rt::check_mapping(&EXTRAS, &LOOKUP, ::od_runtime::pdo::Direction::Receive, mapping)
             }
 
             /// Checks a TPDO mapping, like [`Dictionary::check_rpdo_mapping`].
             pub fn check_tpdo_mapping(mapping: &[u32]) -> Result<u32, ::od_runtime::od::AbortCode> {
-                #rt::check_mapping(&ENTRIES, &LOOKUP, ::od_runtime::pdo::Direction::Transmit, mapping)
+                #rt::check_mapping(&EXTRAS, &LOOKUP, ::od_runtime::pdo::Direction::Transmit, mapping)
             }
 
             #accessors
@@ -1055,12 +1072,18 @@ fn pdo_remapping(sidecar: Option<&crate::sidecar::Sidecar>) -> TokenStream {
 fn trait_impls(name_fn: TokenStream, services: TokenStream) -> TokenStream {
     let rt = rt();
     quote! {
-        // SAFETY: every slot in ENTRIES is `offset::<T>(offset_of!(Dictionary, field), …)` of
-        // the entry's own field, whose type `offset` checked at compile time.
+        // SAFETY: every slot in ROWS is `offset::<T>(offset_of!(Dictionary, field), …)` of
+        // the entry's own field, whose type `offset` checked at compile time, with the capacity
+        // of the entry's extras in EXTRAS.
         unsafe impl #rt::Table for Dictionary {
             #[inline(always)]
-            fn entries() -> &'static [::od_runtime::od::EntryInfo] {
-                &ENTRIES
+            fn rows() -> &'static [#rt::Row] {
+                &ROWS
+            }
+
+            #[inline(always)]
+            fn extras() -> &'static [::od_runtime::od::EntryExtras] {
+                &EXTRAS
             }
         }
 
@@ -1079,10 +1102,29 @@ fn trait_impls(name_fn: TokenStream, services: TokenStream) -> TokenStream {
                 ENTRIES.get(pos).ok_or(::od_runtime::od::AbortCode::NO_OBJECT)
             }
 
+            // What the device reads: decoded from ROWS, so a firmware links no ENTRIES.
+
+            // One copy on a microcontroller, where the services call it from many places.
+            #[cfg_attr(target_os = "none", inline(never))]
+            #[cfg_attr(not(target_os = "none"), inline)]
+            fn entry(&self, index: u16, sub: u8) -> Result<::od_runtime::od::EntryInfo, ::od_runtime::od::AbortCode> {
+                Self::position(index, sub).and_then(#rt::info_at::<Self>)
+            }
+
+            #[inline]
+            fn entry_count(&self) -> usize {
+                ROWS.len()
+            }
+
+            #[inline]
+            fn entry_at(&self, pos: usize) -> Option<::od_runtime::od::EntryInfo> {
+                #rt::info_at::<Self>(pos).ok()
+            }
+
             fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, ::od_runtime::od::AbortCode> {
                 let pos = Self::position(index, sub)?;
-                match (ENTRIES.get(pos), self.slot(pos)) {
-                    (Some(info), Some(slot)) => #rt::read(info, slot, buf),
+                match (#rt::info_at::<Self>(pos), self.slot(pos)) {
+                    (Ok(info), Some(slot)) => #rt::read(&info, slot, buf),
                     _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
                 }
             }
@@ -1093,16 +1135,16 @@ fn trait_impls(name_fn: TokenStream, services: TokenStream) -> TokenStream {
             }
 
             fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
-                for (pos, info) in ENTRIES.iter().enumerate() {
-                    if area.contains(info.index)
+                for (pos, row) in ROWS.iter().enumerate() {
+                    if area.contains(row.index)
                         && let Some(slot) = self.slot_mut(pos)
                     {
-                        #rt::set_default(info, slot, node_id);
+                        #rt::set_default(&row.info(&EXTRAS), slot, node_id);
                     }
                 }
             }
 
-            // The PDO fast path: a handle is the entry's position in ENTRIES, so the runtime
+            // The PDO fast path: a handle is the entry's position in ROWS, so the runtime
             // reaches a mapped entry through its slot, without a lookup.
 
             #[inline]

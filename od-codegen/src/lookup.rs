@@ -1,4 +1,4 @@
-//! The lookup tables of a generated dictionary: `(index, sub)` → position in `ENTRIES`.
+//! The lookup tables of a generated dictionary: `(index, sub)` → position in `ROWS` (and `ENTRIES`).
 //!
 //! The generator computes the tables the runtime's `Lookup` walks (see
 //! `od_runtime::__private_v2::Lookup`): a page per high byte of the index, a 256-bit set per
@@ -111,20 +111,22 @@ pub(crate) fn tokens(keys: &[(u16, u8)]) -> Option<TokenStream> {
             ranks: &[#(#ranks),*],
             objects: &[#(#numbers),*],
             extra: &[#(#extra),*],
-            entries: &ENTRIES,
+            entries: &ROWS,
         };
 
         /// Where a host finds each object's run of entries in one read (1 KB per page of
-        /// 256 indices); empty on a microcontroller, which binary-searches `ENTRIES`.
-        static DIRECT: [u32; #rt::direct_len(#n_pages)] = #rt::direct(&ENTRIES);
+        /// 256 indices); empty on a microcontroller, which binary-searches `ROWS`.
+        static DIRECT: [u32; #rt::direct_len(#n_pages)] = #rt::direct(&ROWS);
     })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use od_runtime::__private_v2::{Lookup, direct, lookup as runtime_lookup, position as compact, position_direct};
-    use od_runtime::od::{AbortCode, Access, DataType, EntryInfo};
+    use od_runtime::__private_v2::{
+        Lookup, Row, direct, lookup as runtime_lookup, meta, position as compact, position_direct,
+    };
+    use od_runtime::od::{AbortCode, Access, DataType};
     use proptest::prelude::*;
 
     fn leak<T>(v: Vec<T>) -> &'static [T] {
@@ -174,8 +176,13 @@ mod tests {
         let bits = od_runtime::__private_v2::bits::<MAX_PAGES>(&objects);
         assert_eq!(&bits[..t.bits.len()], &t.bits[..]);
         assert!(bits[t.bits.len()..].iter().all(|b| *b == [0; 4]));
-        let entries =
-            keys.iter().map(|&(index, sub)| EntryInfo::new(index, sub, DataType::Unsigned8, Access::Ro, false));
+        let entries = keys.iter().map(|&(index, sub)| Row {
+            index,
+            sub,
+            data_type: DataType::Unsigned8,
+            slot: 0,
+            meta: meta(Access::Ro, false, None),
+        });
         Lookup {
             pages,
             bits: leak(t.bits),

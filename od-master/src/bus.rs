@@ -26,12 +26,12 @@ use tokio::time::Instant;
 
 use crate::error::Error;
 use crate::event::{EmcyTexts, Event};
-use crate::node::{Node, SdoOptions};
+use crate::sdo_options::SdoOptions;
 
 /// How the bus task runs, and the defaults of its nodes.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Config {
-    /// The SDO options of a [`Node`] handle made by [`Bus::node`]: timeout 1 s, 2 retries of
+    /// The SDO options of a [`Node`](crate::Node) handle made by [`Bus::node`]: timeout 1 s, 2 retries of
     /// reads and idempotent writes, normal (expedited or segmented) transfers, values up to
     /// 4 KiB.
     pub sdo: SdoOptions,
@@ -60,7 +60,7 @@ pub struct Tpdo {
     pub values: Vec<PdoValue>,
 }
 
-/// A handle on the bus task: SDO transfers (through [`Node`]), NMT, events, SYNC and PDOs.
+/// A handle on the bus task: SDO transfers (through [`Node`](crate::Node)), NMT, events, SYNC and PDOs.
 /// Clones share the task; it ends when the last handle is dropped or the bus closes.
 #[derive(Clone, Debug)]
 pub struct Bus {
@@ -168,10 +168,9 @@ impl Bus {
         Self { commands, events, frames, syncs, link: link_state, sdo: config.sdo }
     }
 
-    /// A handle on node `id` for SDO transfers and NMT, with the bus's default SDO options.
-    pub fn node(&self, id: u8) -> Result<Node, Error> {
-        let id = NodeId::new(id).ok_or(Error::NodeId(id))?;
-        Ok(Node::new(self.clone(), id, self.sdo))
+    /// The SDO options of the node handles [`Bus::node`] makes.
+    pub(crate) fn sdo_options(&self) -> SdoOptions {
+        self.sdo
     }
 
     /// Subscribes to the bus's [`Event`]s from now on.

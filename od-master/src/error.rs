@@ -86,7 +86,7 @@ pub enum Error {
         /// Sub-index.
         sub: u8,
         /// What was wrong.
-        error: crate::remote::UnitError,
+        error: crate::unit_error::UnitError,
     },
     /// A CiA 402 operation failed.
     #[error(transparent)]

@@ -26,6 +26,8 @@ pub mod error;
 pub mod event;
 pub mod node;
 pub mod remote;
+mod sdo_options;
+mod unit_error;
 
 pub use axis::{Axis, AxisConfig, Homing, HomingMethod, Move, UnitAxis};
 pub use boot::{BootError, BootOptions, Network, NodeReport};

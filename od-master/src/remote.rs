@@ -25,6 +25,7 @@ use tokio::sync::broadcast;
 
 use crate::error::Error;
 use crate::node::Node;
+pub use crate::unit_error::UnitError;
 
 pub use od_runtime::master::sdo_client::Direction as Transfer;
 
@@ -447,38 +448,6 @@ impl<T, A, D> Object<'_, T, A, D> {
     fn unit_error(&self, error: UnitError) -> Error {
         Error::Unit { node: self.node.id(), index: self.index, sub: self.sub, error }
     }
-}
-
-/// Why a unit conversion failed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum UnitError {
-    /// A scaling object holds 0 where it divides.
-    #[error("scaling object {index:04X}h is 0")]
-    ZeroFactor {
-        /// The scaling object.
-        index: u16,
-    },
-    /// An intermediate or final value does not fit.
-    #[error("the conversion overflows")]
-    Overflow,
-    /// The dimension has no unit in the device's configuration.
-    #[error("no unit for this dimension in the device's configuration")]
-    NoUnit,
-    /// The quantity's unit is not the configuration's unit for the dimension.
-    #[error("the device's configuration is in {}, not {}", unit_symbol(*.expected), unit_symbol(*.got))]
-    WrongUnit {
-        /// The configuration's unit.
-        expected: Unit,
-        /// The quantity's unit.
-        got: Unit,
-    },
-    /// The raw value does not fit the entry's type.
-    #[error("the raw value does not fit the entry's type")]
-    OutOfRange,
-}
-
-fn unit_symbol(u: Unit) -> &'static str {
-    u.symbol()
 }
 
 /// A device's unit conversions: the generated `units::Units` implements it, built from the

@@ -148,7 +148,9 @@ impl<const Q: usize> CanLink<Q> {
         }
     }
 
-    /// Queues a frame for transmission (dropped and counted if the queue is full).
+    /// Queues a frame for transmission (dropped and counted if the queue is full). Out of
+    /// line on a microcontroller: every service that sends calls it.
+    #[cfg_attr(target_os = "none", inline(never))]
     pub fn push(&mut self, f: Frame) {
         if self.len == Q {
             self.dropped = self.dropped.saturating_add(1);

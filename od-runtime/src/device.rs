@@ -7,7 +7,7 @@ use crate::frame::{Frame, Micros, NodeId};
 use crate::nmt::{NmtCommand, NmtState};
 use crate::od::{AbortCode, Area, DataType, EntryInfo, Handle, MappedHandle, ObjectDictionary, low_bits};
 use crate::pdo::{self, Direction, MAX_MAPPED, MapEntry, Mappable};
-use crate::sdo::{ObjectAccess, SdoServer};
+use crate::sdo::{ObjectAccess, SdoEntry, SdoServer};
 use crate::storage::{self, LOAD_SIGNATURE, SAVE_SIGNATURE, Storage};
 
 /// Most heartbeat consumer entries (1016h sub-indices) the device monitors.
@@ -164,8 +164,6 @@ type Mapped = MappedHandle;
 
 /// Whether the CiA 402 state machine is built in (cargo feature `cia402`).
 const CIA402: bool = cfg!(feature = "cia402");
-/// Whether SDO block transfers are built in (cargo feature `sdo-block`).
-pub(crate) const SDO_BLOCK: bool = cfg!(feature = "sdo-block");
 /// Whether store/restore through [`Storage`] is built in (cargo feature `store`).
 const STORE: bool = cfg!(feature = "store");
 
@@ -464,7 +462,7 @@ const fn restricted(id: u16) -> bool {
 }
 
 fn pdo_lookup<OD: ObjectDictionary>(od: &OD) -> impl FnMut(u16, u8) -> Result<Mappable, AbortCode> + '_ {
-    move |i, s| od.info(i, s).map(Mappable::from)
+    move |i, s| od.entry(i, s).map(|e| Mappable::from(&e))
 }
 
 /// The data of a TPDO: each mapped value's low `bits` bits, from bit 0 up, in one 64-bit word
@@ -503,9 +501,13 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
     }
 
     fn entries_with(&self, index: u16) -> u8 {
-        let all = self.od.entries();
-        let start = all.partition_point(|e| e.index < index);
-        all[start..].iter().take_while(|e| e.index == index).filter(|e| e.sub >= 1).count().min(254) as u8
+        let mut n = 0u8;
+        for sub in 1..=255 {
+            if n < 254 && self.od.entry(index, sub).is_ok() {
+                n += 1;
+            }
+        }
+        n
     }
 
     // ---- configuration caches -------------------------------------------------------------
@@ -845,7 +847,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
     fn write_special(&mut self, index: u16, sub: u8, data: &[u8], source: WriteSource) -> Result<bool, AbortCode> {
         match index {
             0x1010 | 0x1011 if sub >= 1 => {
-                self.od.info(index, sub)?;
+                self.od.entry(index, sub)?;
                 if data.len() != 4 {
                     return Err(if data.len() < 4 { AbortCode::LENGTH_TOO_LOW } else { AbortCode::LENGTH_TOO_HIGH });
                 }
@@ -859,7 +861,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
                 return Ok(true);
             }
             0x1003 if sub == 0 && Self::HISTORY => {
-                self.od.info(index, sub)?;
+                self.od.entry(index, sub)?;
                 if data.len() != 1 {
                     return Err(if data.is_empty() { AbortCode::LENGTH_TOO_LOW } else { AbortCode::LENGTH_TOO_HIGH });
                 }
@@ -932,8 +934,8 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
         for &area in areas {
             self.storage.begin_save(area)?;
             let mut buf = [0u8; 256];
-            for e in self.od.entries() {
-                if !area.contains(e.index) || !Self::storable(e) {
+            for e in (0..self.od.entry_count()).map_while(|p| self.od.entry_at(p)) {
+                if !area.contains(e.index) || !Self::storable(&e) {
                     continue;
                 }
                 if let Ok(n) = self.od.read(e.index, e.sub, &mut buf) {
@@ -1038,11 +1040,11 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
         self.sdo_reset = true;
         self.bootup = true;
         if kind == ResetKind::Node {
-            let has = CIA402 && self.od.info(0x6040, 0).is_ok() && self.od.info(0x6041, 0).is_ok();
+            let has = CIA402 && self.od.entry(0x6040, 0).is_ok() && self.od.entry(0x6041, 0).is_ok();
             self.drive = has.then(StateMachine::new);
             // Only a 16-bit 6041h/605Ah is used (as before handles: a read of another length
             // counted as absent).
-            let u16_entry = |od: &OD, index| match od.info(index, 0) {
+            let u16_entry = |od: &OD, index| match od.entry(index, 0) {
                 Ok(e) if e.byte_len() == 2 && !e.data_type.is_variable_length() => od.handle(index, 0),
                 _ => None,
             };
@@ -1459,8 +1461,10 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
 impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usize> ObjectAccess
     for Core<OD, A, S, P, M>
 {
-    fn info(&self, index: u16, sub: u8) -> Result<&'static EntryInfo, AbortCode> {
-        self.od.info(index, sub)
+    // One copy on a microcontroller: the SDO server asks from many places.
+    #[cfg_attr(target_os = "none", inline(never))]
+    fn info(&self, index: u16, sub: u8) -> Result<SdoEntry, AbortCode> {
+        self.od.entry(index, sub).map(|e| SdoEntry::from(&e))
     }
 
     fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, AbortCode> {
@@ -1836,7 +1840,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
     /// EMCY and enters Fault reaction active (transition 13). The application runs its fault
     /// reaction and then calls [`Device::fault_reaction_done`].
     pub fn set_fault(&mut self, error_code: u16) {
-        if self.core.od.info(0x603F, 0).is_ok() {
+        if self.core.od.entry(0x603F, 0).is_ok() {
             let _ = self.core.od.write(0x603F, 0, &error_code.to_le_bytes());
         }
         self.core.emcy(error_code, emcy::register_bits(error_code), [0; 5]);
@@ -1850,7 +1854,7 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
     /// bytes given: a vendor's error table says both (the DRVI puts a manufacturer parameter in
     /// EMCY byte 3, that is `info[0]`). `register` is or-ed into 1001h with the generic bit.
     pub fn set_fault_with(&mut self, error_code: u16, register: u8, info: [u8; 5]) {
-        if self.core.od.info(0x603F, 0).is_ok() {
+        if self.core.od.entry(0x603F, 0).is_ok() {
             let _ = self.core.od.write(0x603F, 0, &error_code.to_le_bytes());
         }
         self.core.emcy(error_code, register, info);

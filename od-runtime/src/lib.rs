@@ -40,6 +40,7 @@ pub mod nmt;
 pub mod od;
 pub mod pdo;
 pub mod sdo;
+mod sdo_block;
 pub mod storage;
 
 pub use device::{App, Device, Event, MAX_HEARTBEAT_CONSUMERS, ResetKind, WriteSource};

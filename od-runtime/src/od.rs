@@ -197,7 +197,13 @@ impl DataType {
 
     /// Whether values of this type have a variable length (strings, DOMAIN).
     pub const fn is_variable_length(self) -> bool {
-        matches!(self, DataType::VisibleString | DataType::OctetString | DataType::UnicodeString | DataType::Domain)
+        // One bit per type index (all below 32): VISIBLE_STRING, OCTET_STRING, UNICODE_STRING
+        // and DOMAIN. A mask where a `matches!` became a 28-byte table in a firmware.
+        const VARIABLE: u32 = 1 << DataType::VisibleString as u32
+            | 1 << DataType::OctetString as u32
+            | 1 << DataType::UnicodeString as u32
+            | 1 << DataType::Domain as u32;
+        VARIABLE >> self as u32 & 1 != 0
     }
 
     /// Size in bits of a fixed-size value (1 for BOOLEAN); 0 for the variable-length types.
@@ -263,20 +269,45 @@ impl Access {
 /// `i64::MAX` is kept as the same 64 bits (a default is encoded by truncation to the type's
 /// size, so the bytes are the same). REAL32 defaults stay `f32`, so a single-precision FPU
 /// never needs double-precision arithmetic to restore them.
+///
+/// The 64-bit values are [`Bits64`] (two 32-bit words): a default then needs 4-byte alignment
+/// only, and an [`EntryExtras`] row is 20 bytes on a 32-bit target instead of 24.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum DefaultValue {
     /// No default given (zero / empty).
     None,
     /// An integer (BOOLEAN as 0/1).
-    Int(i64),
+    Int(Bits64),
     /// `$NODEID + offset`, resolved at start-up and on communication reset.
-    NodeIdPlus(i64),
+    NodeIdPlus(Bits64),
     /// A REAL32 value.
     Real32(f32),
-    /// A REAL64 value.
-    Real64(f64),
+    /// A REAL64 value, as its bits ([`Bits64::real`]).
+    Real64(Bits64),
     /// Bytes of a string, OCTET_STRING or DOMAIN.
     Bytes(&'static [u8]),
+}
+
+/// 64 bits as two 32-bit words, low first: an `i64` or an `f64`'s bits kept at 4-byte
+/// alignment ([`DefaultValue`]'s 64-bit values).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Bits64([u32; 2]);
+
+impl Bits64 {
+    /// The bits of `v`.
+    pub const fn int(v: i64) -> Self {
+        Bits64([v as u32, (v >> 32) as u32])
+    }
+
+    /// The bits of `v` (`f64::to_bits`).
+    pub const fn real(v: f64) -> Self {
+        Self::int(v.to_bits() as i64)
+    }
+
+    /// The value as an `i64` (an `f64`'s bits for [`real`](Self::real)).
+    pub const fn get(self) -> i64 {
+        (self.0[0] as u64 | (self.0[1] as u64) << 32) as i64
+    }
 }
 
 /// What only some entries have: a capacity (strings, DOMAIN), limits, a default other than
@@ -634,6 +665,26 @@ pub trait ObjectDictionary {
         }
     }
 
+    /// Metadata of one entry, by value: what the device's services read. Errors as
+    /// [`info`](Self::info)'s.
+    ///
+    /// Default: a copy of [`info`](Self::info)'s. Generated dictionaries decode it from their
+    /// compact rows (8 bytes an entry), so a firmware links no table of [`EntryInfo`]s.
+    fn entry(&self, index: u16, sub: u8) -> Result<EntryInfo, AbortCode> {
+        self.info(index, sub).copied()
+    }
+
+    /// The number of entries. Default: the length of [`entries`](Self::entries).
+    fn entry_count(&self) -> usize {
+        self.entries().len()
+    }
+
+    /// Metadata of the entry at `pos` in `(index, sub)` order, by value (`None` past the
+    /// last). Default: a copy of [`entries`](Self::entries)`[pos]`.
+    fn entry_at(&self, pos: usize) -> Option<EntryInfo> {
+        self.entries().get(pos).copied()
+    }
+
     /// Copies the current value into `buf` and returns its length in bytes.
     /// `Err(OUT_OF_MEMORY)` if `buf` is too small.
     fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, AbortCode>;
@@ -659,9 +710,9 @@ pub trait ObjectDictionary {
     /// [`write_handle`](Self::write_handle); `None` if the entry does not exist. A handle stays
     /// valid as long as the dictionary value does (the entries are a static table).
     ///
-    /// Default: [`Handle::from_key`] once [`info`](Self::info) found the entry.
+    /// Default: [`Handle::from_key`] once [`entry`](Self::entry) found the entry.
     fn handle(&self, index: u16, sub: u8) -> Option<Handle> {
-        self.info(index, sub).ok().map(|_| Handle::from_key(index, sub))
+        self.entry(index, sub).ok().map(|_| Handle::from_key(index, sub))
     }
 
     /// The value behind `h` as little-endian bytes: the whole value for every fixed-size type,
@@ -866,13 +917,13 @@ impl DefaultValue {
         let out = &mut buf[..len];
         match *self {
             DefaultValue::None => out.fill(0),
-            DefaultValue::Int(v) => copy_int(v, out),
-            DefaultValue::NodeIdPlus(v) => copy_int(v.wrapping_add(i64::from(node_id)), out),
+            DefaultValue::Int(v) => copy_int(v.get(), out),
+            DefaultValue::NodeIdPlus(v) => copy_int(v.get().wrapping_add(i64::from(node_id)), out),
             // A real default of a real entry is its bits; of any other entry, its bits too
             // (the generator never writes one; this keeps the method total without float
             // conversions).
             DefaultValue::Real32(f) => copy_int(i64::from(f.to_bits()), out),
-            DefaultValue::Real64(f) => copy_int(f.to_bits() as i64, out),
+            DefaultValue::Real64(f) => copy_int(f.get(), out),
             DefaultValue::Bytes(b) => {
                 out.fill(0);
                 let n = b.len().min(len);

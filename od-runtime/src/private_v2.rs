@@ -8,7 +8,7 @@
 //!
 //! # Slots
 //!
-//! A generated dictionary is a struct with one field per entry. Its [`EntryInfo::slot`] is
+//! A generated dictionary is a struct with one field per entry. Its [`Row::slot`] is
 //! the field's byte offset (`offset_of!`), checked at compile time by [`offset`] against
 //! the field's type and the entry's data type; [`slot`] and [`slot_mut`] turn an entry into
 //! a reference to its field. That is the only `unsafe` code of the crate, and [`Table`], the
@@ -26,7 +26,7 @@
 //!
 //! Like the rest of the crate it is `no_std`, never allocates and never panics.
 
-use crate::od::{AbortCode, DataType, EntryInfo, ObjectDictionary};
+use crate::od::{AbortCode, Access, DataType, EntryExtras, EntryFlags, EntryInfo, ObjectDictionary};
 
 // ---------------------------------------------------------------------------------------------
 // Storage
@@ -222,17 +222,131 @@ pub const fn offset<T: Stored>(offset: usize, dt: DataType, bits: u32) -> u16 {
     offset as u16
 }
 
+// ---------------------------------------------------------------------------------------------
+// The entry table
+// ---------------------------------------------------------------------------------------------
+
+/// One row of a generated dictionary's entry table (`ROWS`), as the device reads it: 8 bytes
+/// on every target, where an [`EntryInfo`] is 12 on a 32-bit one (its extras are a pointer
+/// there, a 12-bit position here). [`Row::info`] gives the entry's [`EntryInfo`];
+/// the dictionary's public `ENTRIES` table is made of them at compile time ([`entries`]), and a
+/// firmware, whose device reads the rows ([`ObjectDictionary::entry`]), does not link it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Row {
+    /// Object index.
+    pub index: u16,
+    /// Sub-index.
+    pub sub: u8,
+    /// Data type (the size of a fixed-size value follows from it: [`DataType::bits`]).
+    pub data_type: DataType,
+    /// The value's offset in the dictionary struct, made by [`offset`].
+    pub slot: u16,
+    /// Access, `PDOMapping` and the position of the entry's extras, made by [`meta`].
+    pub meta: u16,
+}
+
+/// The most distinct extras (`EXTRAS`) a generated dictionary can have: a row keeps the
+/// position of its entry's in 12 bits. The generator refuses more.
+pub const MAX_EXTRAS: usize = 0xFFF;
+
+/// A [`Row::meta`]: the extras' position plus one in bits 0..12 (0: none), the access in
+/// bits 12..15, `PDOMapping` in bit 15. A position past [`MAX_EXTRAS`] does not compile.
+pub const fn meta(access: Access, pdo_mappable: bool, extras: Option<usize>) -> u16 {
+    let x = match extras {
+        Some(i) if i < MAX_EXTRAS => i + 1,
+        Some(_) => panic!("a generated dictionary has at most 4095 distinct extras"),
+        None => 0,
+    };
+    x as u16 | (access as u16) << 12 | (pdo_mappable as u16) << 15
+}
+
+impl Row {
+    /// Access type.
+    pub const fn access(&self) -> Access {
+        match (self.meta >> 12) & 7 {
+            0 => Access::Ro,
+            1 => Access::Wo,
+            2 => Access::Rw,
+            3 => Access::Rwr,
+            4 => Access::Rww,
+            _ => Access::Const,
+        }
+    }
+
+    /// `PDOMapping=1`.
+    pub const fn pdo_mappable(&self) -> bool {
+        self.meta >> 15 != 0
+    }
+
+    /// The entry's extras among `extras` (its dictionary's `EXTRAS`), if it has any.
+    pub const fn extras(&self, extras: &'static [EntryExtras]) -> Option<&'static EntryExtras> {
+        match (self.meta & 0xFFF) as usize {
+            0 => None,
+            x if x <= extras.len() => Some(&extras[x - 1]),
+            _ => None,
+        }
+    }
+
+    /// The entry's metadata, its extras taken from `extras` (its dictionary's `EXTRAS`).
+    pub const fn info(&self, extras: &'static [EntryExtras]) -> EntryInfo {
+        EntryInfo {
+            index: self.index,
+            sub: self.sub,
+            data_type: self.data_type,
+            access: self.access(),
+            flags: EntryFlags::new(self.data_type.bits() as u8, self.pdo_mappable()),
+            slot: self.slot,
+            extras: self.extras(extras),
+        }
+    }
+}
+
+/// A dictionary's public entry table (`ENTRIES`, [`ObjectDictionary::entries`]) from its rows
+/// and extras, at compile time.
+pub const fn entries<const N: usize>(rows: &[Row; N], extras: &'static [EntryExtras]) -> [EntryInfo; N] {
+    let mut out = [EntryInfo::new(0, 0, DataType::Boolean, Access::Ro, false); N];
+    let mut i = 0;
+    while i < N {
+        out[i] = rows[i].info(extras);
+        i += 1;
+    }
+    out
+}
+
 /// A struct whose fields are reached through the slots of its entry table.
 ///
 /// # Safety
 ///
-/// Every entry of [`entries`](Self::entries) has a [`slot`](EntryInfo::slot) made by
+/// Every row of [`rows`](Self::rows) has a [`slot`](Row::slot) made by
 /// [`offset`]`::<T>(offset_of!(Self, field), data_type, bits)` for a field of `Self` of type
-/// `T`, with the entry's data type and (for [`Bytes`]) its capacity in bits. The generator
-/// writes exactly that; [`offset`] checks the type and the capacity at compile time.
+/// `T`, with the entry's data type and (for [`Bytes`]) its capacity in bits, the capacity its
+/// extras among [`extras`](Self::extras) give. The generator writes exactly that; [`offset`]
+/// checks the type and the capacity at compile time.
 pub unsafe trait Table: Sized {
-    /// The entry table.
-    fn entries() -> &'static [EntryInfo];
+    /// The entry table (`ROWS`).
+    fn rows() -> &'static [Row];
+    /// The extras the rows point into (`EXTRAS`).
+    fn extras() -> &'static [EntryExtras];
+}
+
+/// The metadata of entry `pos` of `D`'s table: `Err(NO_OBJECT)` past the table. One copy on
+/// a microcontroller (`target_os = "none"`), for every reader of an entry's metadata.
+#[cfg_attr(target_os = "none", inline(never))]
+#[cfg_attr(not(target_os = "none"), inline(always))]
+pub fn info_at<D: Table>(pos: usize) -> Result<EntryInfo, AbortCode> {
+    match D::rows().get(pos) {
+        Some(r) => Ok(r.info(D::extras())),
+        None => Err(AbortCode::NO_OBJECT),
+    }
+}
+
+/// The capacity in bytes of a buffer entry (its extras' `bits / 8`). One copy on a
+/// microcontroller, for [`slot`] and [`slot_mut`].
+#[cfg_attr(target_os = "none", inline(never))]
+#[cfg_attr(not(target_os = "none"), inline(always))]
+fn capacity<D: Table>(row: &Row) -> usize {
+    let x = usize::from(row.meta & 0xFFF).wrapping_sub(1);
+    D::extras().get(x).map_or(0, |x| (x.bits / 8) as usize)
 }
 
 /// The value of entry `pos` of `D`'s table: `None` past the table. One copy on a
@@ -241,7 +355,7 @@ pub unsafe trait Table: Sized {
 #[cfg_attr(target_os = "none", inline(never))]
 #[cfg_attr(not(target_os = "none"), inline(always))]
 pub fn slot<D: Table>(d: &D, pos: usize) -> Option<Slot<'_>> {
-    let info = D::entries().get(pos)?;
+    let info = D::rows().get(pos)?;
     let base = (d as *const D).cast::<u8>();
     // SAFETY: `Table`'s contract: the slot is the offset of a field of `D` stored as
     // `kind_of(data_type)` (and a `Bytes<bits / 8>` for the buffers), inside `*d`, which the
@@ -261,7 +375,7 @@ pub fn slot<D: Table>(d: &D, pos: usize) -> Option<Slot<'_>> {
             Kind::F32 => Slot::F32(&*p.cast::<f32>()),
             Kind::F64 => Slot::F64(&*p.cast::<f64>()),
             Kind::Bytes => {
-                let cap = (info.bits() / 8) as usize;
+                let cap = capacity::<D>(info);
                 let len = (*p.cast::<usize>()).min(cap);
                 Slot::Bytes(core::slice::from_raw_parts(p.add(core::mem::size_of::<usize>()), len))
             }
@@ -274,7 +388,7 @@ pub fn slot<D: Table>(d: &D, pos: usize) -> Option<Slot<'_>> {
 #[cfg_attr(target_os = "none", inline(never))]
 #[cfg_attr(not(target_os = "none"), inline(always))]
 pub fn slot_mut<D: Table>(d: &mut D, pos: usize) -> Option<SlotMut<'_>> {
-    let info = D::entries().get(pos)?;
+    let info = D::rows().get(pos)?;
     let base = (d as *mut D).cast::<u8>();
     // SAFETY: as in `slot`; the exclusive borrow of `*d` makes the one reference handed out
     // (two for a buffer: its length and its bytes, which do not overlap) exclusive.
@@ -293,7 +407,7 @@ pub fn slot_mut<D: Table>(d: &mut D, pos: usize) -> Option<SlotMut<'_>> {
             Kind::F32 => SlotMut::F32(&mut *p.cast::<f32>()),
             Kind::F64 => SlotMut::F64(&mut *p.cast::<f64>()),
             Kind::Bytes => {
-                let cap = (info.bits() / 8) as usize;
+                let cap = capacity::<D>(info);
                 let data = core::slice::from_raw_parts_mut(p.add(core::mem::size_of::<usize>()), cap);
                 SlotMut::Bytes(data, &mut *p.cast::<usize>())
             }
@@ -305,7 +419,7 @@ pub fn slot_mut<D: Table>(d: &mut D, pos: usize) -> Option<SlotMut<'_>> {
 // Lookup
 // ---------------------------------------------------------------------------------------------
 
-/// The lookup tables of a dictionary: `(index, sub)` → position in its `ENTRIES` table, in a
+/// The lookup tables of a dictionary: `(index, sub)` → position in its `ROWS` (and `ENTRIES`), in a
 /// constant number of steps for almost every key.
 ///
 /// The entries are sorted by `(index, sub)`. The index's high byte selects a *page*
@@ -335,8 +449,8 @@ pub struct Lookup {
     /// Per object: the entries of the objects before it in its word beyond one each (255:
     /// 255 or more).
     pub extra: &'static [u8],
-    /// The entry table (`ENTRIES`).
-    pub entries: &'static [EntryInfo],
+    /// The entry table (`ROWS`).
+    pub entries: &'static [Row],
 }
 
 /// [`Lookup::pages`] for the sorted index of every object (pages past 255 are left out: the
@@ -414,7 +528,7 @@ pub fn position(t: &Lookup, index: u16, sub: u8) -> Result<usize, AbortCode> {
 /// 1 KB per page: what a host spends to find an entry in a few instructions. A
 /// microcontroller keeps the compact [`Lookup`] instead (48 bytes per page and a byte per
 /// object), which the generated code uses there.
-pub const fn direct<const N: usize>(entries: &[EntryInfo]) -> [u32; N] {
+pub const fn direct<const N: usize>(entries: &[Row]) -> [u32; N] {
     let mut out = [0u32; N];
     let (mut page, mut high) = (0usize, u32::MAX);
     let mut i = 0;
@@ -451,8 +565,8 @@ pub const fn direct_len(pages: usize) -> usize {
 /// and [`position`] took 1.5 KB of the DRCS firmware's flash, for about 9 probes of the
 /// entry table saved per SDO access (PDOs reach their entries through handles, no lookup).
 #[inline(always)]
-pub fn lookup(t: &Lookup, direct: &[u32], entries: &[EntryInfo], index: u16, sub: u8) -> Result<usize, AbortCode> {
-    // `entries` is `t.entries`, given by the caller as its `ENTRIES` array: inlined there, its
+pub fn lookup(t: &Lookup, direct: &[u32], entries: &[Row], index: u16, sub: u8) -> Result<usize, AbortCode> {
+    // `entries` is `t.entries`, given by the caller as its `ROWS` array: inlined there, its
     // length is a constant (no load of it from `t` per lookup).
     if direct.is_empty() {
         position_sorted(entries, index, sub)
@@ -465,7 +579,7 @@ pub fn lookup(t: &Lookup, direct: &[u32], entries: &[EntryInfo], index: u16, sub
 /// `Err(NO_OBJECT)` if the index is absent, `Err(NO_SUB_INDEX)` if only the sub-index is.
 /// The lookup of a microcontroller: no table besides the entries.
 #[cfg_attr(target_os = "none", inline(never))]
-pub fn position_sorted(entries: &[EntryInfo], index: u16, sub: u8) -> Result<usize, AbortCode> {
+pub fn position_sorted(entries: &[Row], index: u16, sub: u8) -> Result<usize, AbortCode> {
     let key = (u32::from(index) << 8) | u32::from(sub);
     let at = entries.partition_point(|e| ((u32::from(e.index) << 8) | u32::from(e.sub)) < key);
     match entries.get(at) {
@@ -486,7 +600,7 @@ pub fn position_sorted(entries: &[EntryInfo], index: u16, sub: u8) -> Result<usi
 pub fn position_direct(
     pages: &[u8; 256],
     direct: &[u32],
-    entries: &[EntryInfo],
+    entries: &[Row],
     index: u16,
     sub: u8,
 ) -> Result<usize, AbortCode> {
@@ -511,7 +625,7 @@ pub fn position_direct(
 /// [`position_direct`]'s way out: a binary search of an object's run of `len` entries from
 /// `first` by sub-index.
 #[inline(never)]
-fn search_run(entries: &[EntryInfo], first: usize, len: usize, sub: u8) -> Result<usize, AbortCode> {
+fn search_run(entries: &[Row], first: usize, len: usize, sub: u8) -> Result<usize, AbortCode> {
     match entries.get(first..first + len) {
         Some(run) => run.binary_search_by(|e| e.sub.cmp(&sub)).map(|p| first + p).map_err(|_| AbortCode::NO_SUB_INDEX),
         None => Err(AbortCode::NO_OBJECT),
@@ -712,7 +826,7 @@ pub fn set_default(info: &EntryInfo, slot: SlotMut<'_>, node_id: u8) {
 
 /// Reads like an SDO upload: refuses write-only entries (`WRITE_ONLY`).
 pub fn bus_read<D: ObjectDictionary + ?Sized>(od: &D, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, AbortCode> {
-    if !od.info(index, sub)?.access.readable() {
+    if !od.entry(index, sub)?.access.readable() {
         return Err(AbortCode::WRITE_ONLY);
     }
     od.read(index, sub, buf)
@@ -720,7 +834,7 @@ pub fn bus_read<D: ObjectDictionary + ?Sized>(od: &D, index: u16, sub: u8, buf: 
 
 /// Writes like an SDO download: refuses read-only and constant entries (`READ_ONLY`).
 pub fn bus_write<D: ObjectDictionary + ?Sized>(od: &mut D, index: u16, sub: u8, data: &[u8]) -> Result<(), AbortCode> {
-    if !od.info(index, sub)?.access.writable() {
+    if !od.entry(index, sub)?.access.writable() {
         return Err(AbortCode::READ_ONLY);
     }
     od.write(index, sub, data)
@@ -729,14 +843,15 @@ pub fn bus_write<D: ObjectDictionary + ?Sized>(od: &mut D, index: u16, sub: u8, 
 /// Checks a PDO mapping with the runtime's rules ([`crate::pdo::check_mapping`]) against a
 /// dictionary's tables.
 pub fn check_mapping(
-    entries: &'static [EntryInfo],
+    extras: &'static [EntryExtras],
     lookup: &Lookup,
     dir: crate::pdo::Direction,
     mapping: &[u32],
 ) -> Result<u32, AbortCode> {
     crate::pdo::check_mapping(dir, mapping, |index, sub| {
         let pos = position(lookup, index, sub)?;
-        entries.get(pos).map(crate::pdo::Mappable::from).ok_or(AbortCode::NO_OBJECT)
+        let info = lookup.entries.get(pos).ok_or(AbortCode::NO_OBJECT)?.info(extras);
+        Ok(crate::pdo::Mappable::from(&info))
     })
 }
 

@@ -7,9 +7,9 @@
 //! most one block (127 frames) per call.
 
 use crate::crc::crc16_ccitt;
-use crate::device::SDO_BLOCK;
 use crate::frame::Micros;
-use crate::od::{AbortCode, EntryInfo};
+use crate::od::{AbortCode, Access, EntryInfo};
+use crate::sdo_block::SDO_BLOCK;
 
 /// Default SDO timeout: a transfer idle for this long is aborted with 0x0504_0000.
 pub const DEFAULT_TIMEOUT: Micros = 1_000_000;
@@ -17,10 +17,53 @@ pub const DEFAULT_TIMEOUT: Micros = 1_000_000;
 /// Largest block size (segments per block) of a block transfer.
 const MAX_BLKSIZE: u8 = 127;
 
+/// What the SDO server needs of an entry: whether a client may read and write it and how
+/// long its value is, in one word (so that a lookup's answer, `Result<SdoEntry, AbortCode>`,
+/// travels in two registers): the length in bytes in bits 0..24 (longer values count as
+/// 16 MiB − 1, past any SDO buffer), whether it varies in bit 24, readable and writable in
+/// bits 25 and 26.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SdoEntry(u32);
+
+impl SdoEntry {
+    /// An entry of `access` whose value is `len` bytes long (`variable`: at most `len`).
+    pub const fn new(access: Access, variable: bool, len: usize) -> Self {
+        let len = if len > 0xFF_FFFF { 0xFF_FFFF } else { len as u32 };
+        SdoEntry(len | (variable as u32) << 24 | (access.readable() as u32) << 25 | (access.writable() as u32) << 26)
+    }
+
+    /// Whether a client may read the entry ([`Access::readable`]).
+    pub const fn readable(self) -> bool {
+        self.0 & 1 << 25 != 0
+    }
+
+    /// Whether a client may write the entry ([`Access::writable`]).
+    pub const fn writable(self) -> bool {
+        self.0 & 1 << 26 != 0
+    }
+
+    /// Whether the value's length varies (strings, DOMAIN): [`byte_len`](Self::byte_len) is then its
+    /// capacity.
+    pub const fn variable(self) -> bool {
+        self.0 & 1 << 24 != 0
+    }
+
+    /// The value's length in bytes ([`EntryInfo::byte_len`]).
+    pub const fn byte_len(self) -> usize {
+        (self.0 & 0xFF_FFFF) as usize
+    }
+}
+
+impl From<&EntryInfo> for SdoEntry {
+    fn from(e: &EntryInfo) -> Self {
+        SdoEntry::new(e.access, e.data_type.is_variable_length(), e.byte_len())
+    }
+}
+
 /// How the SDO server reaches the dictionary.
 pub trait ObjectAccess {
-    /// Metadata of an entry (`NO_OBJECT` / `NO_SUB_INDEX` when absent).
-    fn info(&self, index: u16, sub: u8) -> Result<&'static EntryInfo, AbortCode>;
+    /// Access and length of an entry (`NO_OBJECT` / `NO_SUB_INDEX` when absent).
+    fn info(&self, index: u16, sub: u8) -> Result<SdoEntry, AbortCode>;
     /// Reads the value into `buf`, returning its length.
     fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, AbortCode>;
     /// Writes a value from the bus (the application may veto it).
@@ -191,9 +234,9 @@ impl<const N: usize> SdoServer<N> {
     }
 
     /// Length and size checks shared by segmented and block downloads.
-    fn check_size(info: &EntryInfo, size: usize) -> Result<(), AbortCode> {
+    fn check_size(info: SdoEntry, size: usize) -> Result<(), AbortCode> {
         let cap = info.byte_len();
-        if info.data_type.is_variable_length() {
+        if info.variable() {
             if size > cap {
                 return Err(AbortCode::LENGTH_TOO_HIGH);
             }
@@ -208,10 +251,10 @@ impl<const N: usize> SdoServer<N> {
         Ok(())
     }
 
-    fn writable(acc: &impl ObjectAccess, index: u16, sub: u8) -> Result<&'static EntryInfo, (u16, u8, AbortCode)> {
-        let info = acc.info(index, sub).map_err(|c| (index, sub, c))?;
-        if !info.access.writable() {
-            return Err((index, sub, AbortCode::READ_ONLY));
+    fn writable(acc: &impl ObjectAccess, index: u16, sub: u8) -> Result<SdoEntry, AbortCode> {
+        let info = acc.info(index, sub)?;
+        if !info.writable() {
+            return Err(AbortCode::READ_ONLY);
         }
         Ok(info)
     }
@@ -219,12 +262,12 @@ impl<const N: usize> SdoServer<N> {
     fn initiate_download(&mut self, d: &[u8; 8], acc: &mut impl ObjectAccess) -> Result<(), (u16, u8, AbortCode)> {
         let (index, sub) = mux(d);
         let cmd = d[0];
-        let info = Self::writable(acc, index, sub)?;
+        let info = Self::writable(acc, index, sub).map_err(|c| (index, sub, c))?;
         let sized = cmd & 0x01 != 0;
         if cmd & 0x02 != 0 {
             let n = if sized {
                 4 - usize::from((cmd >> 2) & 0x03)
-            } else if info.data_type.is_variable_length() {
+            } else if info.variable() {
                 4
             } else {
                 info.byte_len().clamp(1, 4)
@@ -281,7 +324,7 @@ impl<const N: usize> SdoServer<N> {
     /// Reads an entry for upload into the buffer, checking read access.
     fn load(&mut self, acc: &mut impl ObjectAccess, index: u16, sub: u8) -> Result<usize, (u16, u8, AbortCode)> {
         let info = acc.info(index, sub).map_err(|c| (index, sub, c))?;
-        if !info.access.readable() {
+        if !info.readable() {
             return Err((index, sub, AbortCode::WRITE_ONLY));
         }
         let len = acc.read(index, sub, &mut self.buf).map_err(|c| (index, sub, c))?;
@@ -349,7 +392,7 @@ impl<const N: usize> SdoServer<N> {
             let (i, s) = self.current_mux();
             return Err((i, s, AbortCode::INVALID_COMMAND));
         }
-        let info = Self::writable(acc, index, sub)?;
+        let info = Self::writable(acc, index, sub).map_err(|c| (index, sub, c))?;
         let size = if cmd & 0x02 != 0 {
             let s = u32::from_le_bytes([d[4], d[5], d[6], d[7]]) as usize;
             Self::check_size(info, s).map_err(|c| (index, sub, c))?;

@@ -3,6 +3,7 @@
 #![deny(missing_docs)]
 
 pub mod codegen;
+pub mod deps;
 pub mod size;
 
 use std::path::PathBuf;

@@ -8,7 +8,8 @@ commands:
   gen [--check]   regenerate generated/ from the device files and network descriptions,
                   printing what changed in each changed device file (--check: fail if stale)
   size [--elf F]  build the example firmware for each device (thumbv7em-none-eabihf), print
-                  its sections, fail above the size budget or when core::fmt is linked";
+                  its sections, fail above the size budget or when core::fmt is linked
+  deps            read every crate's module imports and fail on any import circle";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -19,6 +20,7 @@ fn main() -> ExitCode {
     let result = match cmd.as_str() {
         "gen" => xtask::codegen::main(rest),
         "size" => xtask::size::main(rest),
+        "deps" => xtask::deps::main(rest),
         "help" | "--help" | "-h" => {
             println!("{USAGE}");
             Ok(())

@@ -14,16 +14,7 @@ use super::{
 };
 use crate::storage::{FileStorage, MemoryStorage};
 
-/// One of the devices whose dictionaries the `generated` crate holds.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum DeviceKind {
-    /// Camozzi DRVI integrated drive (`devices/camozzi-drvi.eds`).
-    Drvi,
-    /// Camozzi DRCS stepper drive (`devices/camozzi-drcs.eds`).
-    Drcs,
-    /// Kollmorgen AKD servo drive (`devices/kollmorgen-akd.eds`).
-    Akd,
-}
+pub use super::kind::DeviceKind;
 
 impl DeviceKind {
     /// Every device, in command-line order.

@@ -65,6 +65,7 @@
 
 mod app;
 mod devices;
+mod kind;
 mod params;
 mod retain;
 mod run;

@@ -31,7 +31,7 @@ macro_rules! device_tests {
         #[cfg(feature = $feature)]
         mod $module {
             use super::*;
-            use generated::$module::{Dictionary, ENTRIES};
+            use generated::$module::{Dictionary, ENTRIES, ROWS};
 
             #[test]
             fn table_covers_the_model() {
@@ -47,6 +47,13 @@ macro_rules! device_tests {
                     assert_eq!(name.rsplit(": ").next().unwrap(), e.name.trim());
                 }
                 assert!(ENTRIES.windows(2).all(|w| (w[0].index, w[0].sub) < (w[1].index, w[1].sub)));
+                // The device's rows, decoded, are the public table, position by position.
+                assert_eq!((ROWS.len(), od.entry_count()), (ENTRIES.len(), ENTRIES.len()));
+                for (pos, e) in ENTRIES.iter().enumerate() {
+                    assert_eq!(od.entry_at(pos).as_ref(), Some(e), "entry {pos}");
+                    assert_eq!((ROWS[pos].index, ROWS[pos].sub, ROWS[pos].data_type), (e.index, e.sub, e.data_type));
+                }
+                assert_eq!(od.entry_at(ENTRIES.len()), None);
                 // Each row's size byte is its data type's size (the capacity of a buffer is in
                 // its extras), so `bits()` is what it was before the byte held it.
                 for e in ENTRIES.iter() {
@@ -71,9 +78,11 @@ macro_rules! device_tests {
                         };
                         assert_eq!(Dictionary::position(index, sub), want, "0x{index:04X} sub {sub}");
                         // A microcontroller's lookup (no direct table): a binary search.
-                        let sorted = od_runtime::__private_v2::position_sorted(&ENTRIES, index, sub);
+                        let sorted = od_runtime::__private_v2::position_sorted(&ROWS, index, sub);
                         assert_eq!(sorted, want, "0x{index:04X} sub {sub}, binary search");
                         assert_eq!(od.info(index, sub).map(|e| (e.index, e.sub)), want.map(|_| (index, sub)));
+                        // What the device reads (decoded from ROWS) is the public table's row.
+                        assert_eq!(od.entry(index, sub), od.info(index, sub).copied(), "0x{index:04X} sub {sub}");
                     }
                 }
             }

@@ -181,7 +181,7 @@ fn dcf_parameter_values_win_and_unicode_strings_are_utf16() {
     ]);
     let text = render(&expand(&m, &Options::new("x", "x.dcf")).tokens, "x.dcf").unwrap();
     assert!(text.contains("producer_heartbeat_time: 500,"), "{text}");
-    assert!(text.contains("DefaultValue::Int(500)"), "{text}");
+    assert!(text.contains("DefaultValue::Int(") && text.contains("::od_runtime::od::Bits64::int(500)"), "{text}");
     assert!(text.contains(r#"DefaultValue::Bytes(b"A\0b\0")"#), "{text}");
 }
 

@@ -24,21 +24,20 @@ pub mod tiny {
         ranks: &[[0, 1, 1, 1]],
         objects: &[[0, 1, 1, 1]],
         extra: &[0],
-        entries: &ENTRIES,
+        entries: &ROWS,
     };
     /// Where a host finds each object's run of entries in one read (1 KB per page of
-    /// 256 indices); empty on a microcontroller, which binary-searches `ENTRIES`.
+    /// 256 indices); empty on a microcontroller, which binary-searches `ROWS`.
     static DIRECT: [u32; ::od_runtime::__private_v1::direct_len(1)] = ::od_runtime::__private_v1::direct(
-        &ENTRIES,
+        &ROWS,
     );
-    /// Metadata of every entry, sorted by `(index, sub)`: 12 bytes each on a 32-bit target.
-    pub static ENTRIES: [::od_runtime::od::EntryInfo; 1] = [
-        ::od_runtime::od::EntryInfo {
+    /// The entry table the device reads, sorted by `(index, sub)`: 8 bytes a row.
+    /// [`ENTRIES`] is made from it.
+    pub static ROWS: [::od_runtime::__private_v1::Row; 1] = [
+        ::od_runtime::__private_v1::Row {
             index: 0x2000,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            access: ::od_runtime::od::Access::Rw,
-            flags: ::od_runtime::od::EntryFlags::new(8, false),
             slot: ::od_runtime::__private_v1::offset::<
                 u8,
             >(
@@ -46,15 +45,28 @@ pub mod tiny {
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            extras: Some(&EXTRAS[0]),
+            meta: ::od_runtime::__private_v1::meta(
+                ::od_runtime::od::Access::Rw,
+                false,
+                Some(0),
+            ),
         },
     ];
+    /// Metadata of every entry, sorted by `(index, sub)` (`ObjectDictionary::entries`): made
+    /// from [`ROWS`] and [`EXTRAS`] at compile time. A firmware, whose device reads the rows,
+    /// does not link it.
+    pub static ENTRIES: [::od_runtime::od::EntryInfo; 1] = ::od_runtime::__private_v1::entries(
+        &ROWS,
+        &EXTRAS,
+    );
     /// Capacities, defaults other than zero and limits, each distinct one once
     /// ([`EntryInfo::extras`](::od_runtime::od::EntryInfo::extras) points here).
     pub static EXTRAS: [::od_runtime::od::EntryExtras; 1] = [
         ::od_runtime::od::EntryExtras {
             bits: 0,
-            default: ::od_runtime::od::DefaultValue::Int(7),
+            default: ::od_runtime::od::DefaultValue::Int(
+                ::od_runtime::od::Bits64::int(7),
+            ),
             limits: None,
         },
     ];
@@ -88,7 +100,7 @@ pub mod tiny {
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::lookup(&LOOKUP, &DIRECT, &ENTRIES, index, sub)
+            ::od_runtime::__private_v1::lookup(&LOOKUP, &DIRECT, &ROWS, index, sub)
         }
         /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
@@ -109,7 +121,10 @@ pub mod tiny {
             match self.slot(pos) {
                 Some(slot) => {
                     ::od_runtime::__private_v1::first8(
-                        || ENTRIES.get(pos).map_or(0, |e| e.bits()),
+                        || {
+                            ::od_runtime::__private_v1::info_at::<Self>(pos)
+                                .map_or(0, |e| e.bits())
+                        },
                         slot,
                     )
                 }
@@ -127,10 +142,13 @@ pub mod tiny {
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
             let (real_low, real_high) = (None, None);
-            match (ENTRIES.get(pos), self.slot_mut(pos)) {
-                (Some(info), Some(slot)) => {
+            match (
+                ::od_runtime::__private_v1::info_at::<Self>(pos),
+                self.slot_mut(pos),
+            ) {
+                (Ok(info), Some(slot)) => {
                     ::od_runtime::__private_v1::write(
-                        info,
+                        &info,
                         slot,
                         data,
                         real_low,
@@ -169,7 +187,7 @@ pub mod tiny {
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
             ::od_runtime::__private_v1::check_mapping(
-                &ENTRIES,
+                &EXTRAS,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
                 mapping,
@@ -180,7 +198,7 @@ pub mod tiny {
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
             ::od_runtime::__private_v1::check_mapping(
-                &ENTRIES,
+                &EXTRAS,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
                 mapping,
@@ -202,8 +220,12 @@ pub mod tiny {
     }
     unsafe impl ::od_runtime::__private_v1::Table for Dictionary {
         #[inline(always)]
-        fn entries() -> &'static [::od_runtime::od::EntryInfo] {
-            &ENTRIES
+        fn rows() -> &'static [::od_runtime::__private_v1::Row] {
+            &ROWS
+        }
+        #[inline(always)]
+        fn extras() -> &'static [::od_runtime::od::EntryExtras] {
+            &EXTRAS
         }
     }
     impl ::od_runtime::od::ObjectDictionary for Dictionary {
@@ -228,6 +250,24 @@ pub mod tiny {
             let pos = Self::position(index, sub)?;
             ENTRIES.get(pos).ok_or(::od_runtime::od::AbortCode::NO_OBJECT)
         }
+        #[cfg_attr(target_os = "none", inline(never))]
+        #[cfg_attr(not(target_os = "none"), inline)]
+        fn entry(
+            &self,
+            index: u16,
+            sub: u8,
+        ) -> Result<::od_runtime::od::EntryInfo, ::od_runtime::od::AbortCode> {
+            Self::position(index, sub)
+                .and_then(::od_runtime::__private_v1::info_at::<Self>)
+        }
+        #[inline]
+        fn entry_count(&self) -> usize {
+            ROWS.len()
+        }
+        #[inline]
+        fn entry_at(&self, pos: usize) -> Option<::od_runtime::od::EntryInfo> {
+            ::od_runtime::__private_v1::info_at::<Self>(pos).ok()
+        }
         fn read(
             &self,
             index: u16,
@@ -235,9 +275,9 @@ pub mod tiny {
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
             let pos = Self::position(index, sub)?;
-            match (ENTRIES.get(pos), self.slot(pos)) {
-                (Some(info), Some(slot)) => {
-                    ::od_runtime::__private_v1::read(info, slot, buf)
+            match (::od_runtime::__private_v1::info_at::<Self>(pos), self.slot(pos)) {
+                (Ok(info), Some(slot)) => {
+                    ::od_runtime::__private_v1::read(&info, slot, buf)
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -252,9 +292,13 @@ pub mod tiny {
             self.write_at(pos, data)
         }
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
-            for (pos, info) in ENTRIES.iter().enumerate() {
-                if area.contains(info.index) && let Some(slot) = self.slot_mut(pos) {
-                    ::od_runtime::__private_v1::set_default(info, slot, node_id);
+            for (pos, row) in ROWS.iter().enumerate() {
+                if area.contains(row.index) && let Some(slot) = self.slot_mut(pos) {
+                    ::od_runtime::__private_v1::set_default(
+                        &row.info(&EXTRAS),
+                        slot,
+                        node_id,
+                    );
                 }
             }
         }

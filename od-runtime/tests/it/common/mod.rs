@@ -44,7 +44,7 @@ const fn e(index: u16, sub: u8, data_type: DataType, access: Access, pdo: bool, 
 }
 
 const fn int(v: i128) -> DefaultValue {
-    DefaultValue::Int(v as i64)
+    DefaultValue::Int(od_runtime::od::Bits64::int(v as i64))
 }
 
 const fn sized(mut r: Row, bytes: u32) -> Row {
@@ -97,7 +97,7 @@ const fn table() -> [Row; N] {
         push!(e(0x1011, k, Unsigned32, Rw, false, int(1)));
         k += 1;
     }
-    push!(e(0x1014, 0, Unsigned32, Rw, false, DefaultValue::NodeIdPlus(0x80)));
+    push!(e(0x1014, 0, Unsigned32, Rw, false, DefaultValue::NodeIdPlus(od_runtime::od::Bits64::int(0x80))));
     push!(e(0x1015, 0, Unsigned16, Rw, false, none));
     push!(e(0x1016, 0, Unsigned8, Ro, false, int(4)));
     k = 1;
@@ -113,15 +113,15 @@ const fn table() -> [Row; N] {
     push!(e(0x1018, 4, Unsigned32, Ro, false, int(12345)));
     push!(e(0x1019, 0, Unsigned8, Rw, false, none));
     push!(e(0x1200, 0, Unsigned8, Ro, false, int(2)));
-    push!(e(0x1200, 1, Unsigned32, Ro, false, DefaultValue::NodeIdPlus(0x600)));
-    push!(e(0x1200, 2, Unsigned32, Ro, false, DefaultValue::NodeIdPlus(0x580)));
+    push!(e(0x1200, 1, Unsigned32, Ro, false, DefaultValue::NodeIdPlus(od_runtime::od::Bits64::int(0x600))));
+    push!(e(0x1200, 2, Unsigned32, Ro, false, DefaultValue::NodeIdPlus(od_runtime::od::Bits64::int(0x580))));
     // RPDO communication: RPDO1 and RPDO2 valid, RPDO3 and RPDO4 not.
     let mut p = 0;
     while p < 4 {
         let idx = 0x1400 + p as u16;
         let cob = 0x200 + 0x100 * p as i128 + if p >= 2 { 0x8000_0000 } else { 0 };
         push!(e(idx, 0, Unsigned8, Ro, false, int(5)));
-        push!(e(idx, 1, Unsigned32, Rw, false, DefaultValue::NodeIdPlus(cob as i64)));
+        push!(e(idx, 1, Unsigned32, Rw, false, DefaultValue::NodeIdPlus(od_runtime::od::Bits64::int(cob as i64))));
         push!(e(idx, 2, Unsigned8, Rw, false, int(255)));
         push!(e(idx, 5, Unsigned16, Rw, false, none));
         p += 1;
@@ -155,7 +155,7 @@ const fn table() -> [Row; N] {
         let cob = 0x180 + 0x100 * p as i128 + if p >= 2 { 0x8000_0000 } else { 0 };
         let ttype = if p == 1 { 1 } else { 255 };
         push!(e(idx, 0, Unsigned8, Ro, false, int(6)));
-        push!(e(idx, 1, Unsigned32, Rw, false, DefaultValue::NodeIdPlus(cob as i64)));
+        push!(e(idx, 1, Unsigned32, Rw, false, DefaultValue::NodeIdPlus(od_runtime::od::Bits64::int(cob as i64))));
         push!(e(idx, 2, Unsigned8, Rw, false, int(ttype)));
         push!(e(idx, 3, Unsigned16, Rw, false, none));
         push!(e(idx, 5, Unsigned16, Rw, false, none));

@@ -1,0 +1,36 @@
+//! How a node's SDO transfers run ([`SdoOptions`]): the bus keeps a default for the nodes it
+//! hands out and each [`Node`](crate::Node) its own, so the definition sits below both `bus`
+//! and `node`. Public as `od_master::SdoOptions` and `od_master::node::SdoOptions`.
+
+use std::time::Duration;
+
+use od_runtime::master::Mode;
+
+/// How a node's SDO transfers run: per node ([`Node::with_options`]) and per call (a node
+/// handle is cheap: clone one with other options for a single call).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SdoOptions {
+    /// How long the client waits for each answer of the server (default 1 s: drives that
+    /// write to flash while answering need hundreds of milliseconds).
+    pub timeout: Duration,
+    /// How many times a failed read, or a write to an object said to be idempotent, is
+    /// started again after a lost or garbled answer (timeout, toggle bit, CRC, sequence).
+    /// Default 2. A server's abort for the object itself is never retried, nor a plain write.
+    pub retries: u8,
+    /// Expedited/segmented (default), always segmented, or block transfer.
+    pub mode: Mode,
+    /// A block transfer to a server that does not do them runs as a normal one (default on):
+    /// the block request refused with 0504 0001h is sent again as a normal one, and a normal
+    /// upload answer to a block upload (python-canopen's `LocalNode`) is followed. Off, both
+    /// fail with the 0504 0001h abort (see `od_runtime::master::SdoClient::set_block_fallback`).
+    pub block_fallback: bool,
+    /// The largest value a read accepts (default 4 KiB); a longer one aborts the transfer
+    /// with "out of memory".
+    pub max_len: usize,
+}
+
+impl Default for SdoOptions {
+    fn default() -> Self {
+        Self { timeout: Duration::from_secs(1), retries: 2, mode: Mode::Normal, block_fallback: true, max_len: 4096 }
+    }
+}
