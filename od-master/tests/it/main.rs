@@ -7,6 +7,7 @@ mod boot_cli;
 mod cli;
 mod client;
 mod client_ui;
+mod errors;
 mod events;
 mod faults;
 mod harness;
