@@ -297,6 +297,10 @@ impl Axis {
                 return Err(self.explained(STATUSWORD, 0, AxisErrorKind::Fault { error_code }).await);
             }
             if let Some(why) = watch.check(sw) {
+                if matches!(why, StopReason::Emergency { .. }) {
+                    // The EMCY can come before the statusword shows why: the error shows it.
+                    let _ = self.statusword().await;
+                }
                 let kind = AxisErrorKind::Stopped { what: what.to_owned(), why };
                 return Err(self.explained(STATUSWORD, 0, kind).await);
             }

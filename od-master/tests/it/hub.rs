@@ -221,3 +221,61 @@ fn the_blocking_facade_reads_writes_and_moves_a_drive() {
     drop((axis, drive, bus));
     rig.shutdown();
 }
+
+/// Over the hub, the waits of #36 that could not succeed end at once and say why: the AKD's
+/// homing with its default method 0 (6098h) fails before anything moves; its move into the
+/// positive limit switch (+2 turns) ends as statusword bit 11 goes up (0AB7h), not after 30 s;
+/// the DRVI's profile-position move with its default profile velocity 0 (6081h) fails before
+/// the set-point, where it used to be "not acknowledged" after a second.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn over_the_hub_waits_that_cannot_succeed_end_at_once_saying_why() {
+    use od_master::{AxisErrorKind, Impossible, StopReason};
+    use std::time::Instant;
+    let rig = Rig::start("127.0.0.1:0", &[(DeviceKind::Drvi, 2), (DeviceKind::Akd, 4)]);
+    let bus = Bus::open(&format!("socketcand://{}/can0", rig.addr()), Config::default()).await.unwrap();
+    let kind = |e: &Error| match e {
+        Error::Axis(a) => format!("{:?}", a.kind),
+        e => panic!("{e}"),
+    };
+    let akd = Axis::new(bus.node(4).unwrap());
+    let method = akd.node().read::<i8>(0x6098, 0).await.unwrap();
+    let t = Instant::now();
+    let e = akd.home(HomingMethod(method)).await.unwrap_err();
+    assert!(t.elapsed() < Duration::from_secs(1), "{:?}", t.elapsed());
+    assert_eq!(kind(&e), format!("{:?}", AxisErrorKind::Impossible(Impossible::NoHomingMethod)), "{e}");
+    assert!(e.to_string().contains("homing method 0 (6098h)"), "{e}");
+
+    let sidecar = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../devices/kollmorgen-akd.toml");
+    let sidecar = od_sidecar::Sidecar::read(&sidecar).unwrap();
+    bus.set_emcy_texts(4, od_master::EmcyTexts::from_sidecar(&sidecar)).await.unwrap();
+    let akd = akd.with_register(od_master::StatusRegister::from_sidecar(&sidecar).unwrap());
+    akd.node().write_idempotent(0x6092, 1, 10_000u32).await.unwrap();
+    akd.home(HomingMethod(35)).await.unwrap_or_else(|e| panic!("{e}"));
+    let m = Move { velocity: Some(40_000), acceleration: Some(400_000), deceleration: Some(400_000), ..Move::default() };
+    let t = Instant::now();
+    let e = akd.move_to(100_000, &m).await.unwrap_err();
+    // 2 turns at 4 turns/s: 0.6 s to the switch, then at once.
+    assert!(t.elapsed() < Duration::from_millis(1_600), "{:?}: {e}", t.elapsed());
+    let Error::Axis(a) = &e else { panic!("{e}") };
+    // Whichever says it first: the statusword's bit 11 or the EMCY 8612h (limit switch).
+    let why = match &a.kind {
+        AxisErrorKind::Stopped { why: why @ (StopReason::InternalLimit | StopReason::Emergency { .. }), .. } => why,
+        _ => panic!("{e}"),
+    };
+    if let StopReason::Emergency { code, text } = why {
+        assert_eq!(*code, 0x8612, "{e}");
+        assert!(text.is_some(), "the sidecar's text: {e}");
+    }
+    assert!(e.to_string().contains("internal limit active"), "{e}");
+    eprintln!("AKD into its limit switch: {e}");
+
+    let drvi = Axis::new(bus.node(2).unwrap());
+    drvi.home(HomingMethod(37)).await.unwrap_or_else(|e| panic!("{e}"));
+    let t = Instant::now();
+    let e = drvi.move_to(3_600, &Move::default()).await.unwrap_err();
+    assert!(t.elapsed() < Duration::from_secs(1), "{:?}", t.elapsed());
+    assert_eq!(kind(&e), format!("{:?}", AxisErrorKind::Impossible(Impossible::NoProfileVelocity)), "{e}");
+    assert!(e.to_string().contains("profile velocity 6081h is 0"), "{e}");
+    drop(bus);
+    rig.shutdown();
+}
