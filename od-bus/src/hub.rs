@@ -737,10 +737,8 @@ impl Session<'_> {
             (Message::Open(name), Mode::NoBus) => {
                 let served = &self.hub.config.channels;
                 if !served.is_empty() && !served.contains(&name) {
-                    return self.refuse(format!(
-                        "channel {name} is not served here; this hub serves {}",
-                        served.join(", ")
-                    ));
+                    return self
+                        .refuse(format!("channel {name} is not served here; this hub serves {}", served.join(", ")));
                 }
                 let others = self.hub.channel_names();
                 if !others.is_empty() && !others.contains(&name) {

@@ -811,7 +811,10 @@ fn a_hub_serving_named_channels_refuses_another() {
     let config = HubConfig { channels: vec!["can0".into()], ..HubConfig::default() };
     let (hub, _events) = recording_hub(config);
     let err = SocketcandClient::connect(hub.local_addr(), "can1").unwrap_err();
-    assert_eq!(err.to_string(), "protocol error: server refused: channel can1 is not served here; this hub serves can0");
+    assert_eq!(
+        err.to_string(),
+        "protocol error: server refused: channel can1 is not served here; this hub serves can0"
+    );
     SocketcandClient::connect(hub.local_addr(), "can0").expect("the channel served");
 }
 
@@ -831,5 +834,10 @@ fn a_lone_channel_beside_busy_ones_is_reported() {
         .map(|e| e.to_string())
         .collect();
     assert_eq!(lone.len(), 1, "{lone:?}");
-    assert!(lone[0].ends_with("opened channel can1, which nothing else is on (channels in use: can0): a misspelt channel name?"), "{lone:?}");
+    assert!(
+        lone[0].ends_with(
+            "opened channel can1, which nothing else is on (channels in use: can0): a misspelt channel name?"
+        ),
+        "{lone:?}"
+    );
 }

@@ -251,7 +251,8 @@ async fn over_the_hub_waits_that_cannot_succeed_end_at_once_saying_why() {
     let akd = akd.with_register(od_master::StatusRegister::from_sidecar(&sidecar).unwrap());
     akd.node().write_idempotent(0x6092, 1, 10_000u32).await.unwrap();
     akd.home(HomingMethod(35)).await.unwrap_or_else(|e| panic!("{e}"));
-    let m = Move { velocity: Some(40_000), acceleration: Some(400_000), deceleration: Some(400_000), ..Move::default() };
+    let m =
+        Move { velocity: Some(40_000), acceleration: Some(400_000), deceleration: Some(400_000), ..Move::default() };
     let t = Instant::now();
     let e = akd.move_to(100_000, &m).await.unwrap_err();
     // 2 turns at 4 turns/s: 0.6 s to the switch, then at once.
