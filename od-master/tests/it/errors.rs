@@ -288,3 +288,21 @@ async fn a_read_from_a_node_never_heard_from_says_it_may_not_be_on_the_bus() {
          power and wiring)?"
     );
 }
+
+/// A generated `Units` says what it is in one line: its system and what one raw unit is in each
+/// dimension (its Debug was the prepared divisors, 2 000 characters).
+#[tokio::test(start_paused = true)]
+async fn generated_units_display_their_system_and_factors() {
+    use crate::client::{akd, drvi};
+    let n = net(&[(DeviceKind::Drvi, 2), (DeviceKind::Akd, 4)]);
+    pass(Duration::from_millis(5)).await;
+    let units = drvi::remote::Remote::new(n.bus.node(2).unwrap()).units().await.unwrap();
+    assert_eq!(
+        units.to_string(),
+        "only-motor: 1 raw = 1/100 deg (Position), 1/100 rpm (Velocity), 1 rpm/s (Acceleration), 1 mA (Torque), \
+         1 mA/s (TorqueSlope), 1 ms (Time)"
+    );
+    assert_eq!(format!("{units:?}"), format!("Units({units})"));
+    let units = akd::remote::Remote::new(n.bus.node(4).unwrap()).units().await.unwrap();
+    assert!(format!("{units:?}").len() < 200, "{units:?}");
+}
