@@ -192,7 +192,11 @@ pub(crate) fn human(d: Duration) -> String {
         format!("{ms} ms")
     } else if ms < 60_000 {
         let tenths = (ms + 50) / 100;
-        if tenths.is_multiple_of(10) { format!("{} s", tenths / 10) } else { format!("{}.{} s", tenths / 10, tenths % 10) }
+        if tenths.is_multiple_of(10) {
+            format!("{} s", tenths / 10)
+        } else {
+            format!("{}.{} s", tenths / 10, tenths % 10)
+        }
     } else {
         format!("{} min {} s", ms / 60_000, ms % 60_000 / 1000)
     }
