@@ -82,6 +82,12 @@ pub struct HubConfig {
     pub reply_pause: Duration,
     /// Where events go; [`HubConfig::default`] prints them to stderr.
     pub observer: HubObserver,
+    /// The channels this hub serves; opening another is refused (`< error channel can1 is not
+    /// served here; this hub serves can0 >`), so that a misspelt channel is not an empty bus.
+    /// Empty (the default): any name, each channel made when first used; a channel opened
+    /// while others have members and it has none is then reported
+    /// ([`HubEvent::LoneChannel`]).
+    pub channels: Vec<String>,
 }
 
 impl HubConfig {
@@ -112,6 +118,7 @@ impl Default for HubConfig {
             drop_report_interval: Duration::from_secs(1),
             reply_pause: Duration::from_millis(50),
             observer: Arc::new(|event: &HubEvent| eprintln!("hub: {event}")),
+            channels: Vec::new(),
         }
     }
 }
@@ -128,6 +135,7 @@ impl fmt::Debug for HubConfig {
             .field("max_rate", &self.max_rate)
             .field("bitrate", &self.bitrate)
             .field("drop_report_interval", &self.drop_report_interval)
+            .field("channels", &self.channels)
             .finish_non_exhaustive()
     }
 }
@@ -163,6 +171,18 @@ pub enum HubEvent {
         peer: SocketAddr,
         /// Channel name.
         channel: String,
+    },
+    /// A client opened a channel nothing else is on while other channels have members: a
+    /// misspelt channel name, most likely (it sees an empty bus).
+    LoneChannel {
+        /// Client number.
+        client: u64,
+        /// Its address.
+        peer: SocketAddr,
+        /// The channel it opened.
+        channel: String,
+        /// The channels that have members, sorted.
+        others: Vec<String>,
     },
     /// A client entered raw mode and now receives the channel's frames.
     RawMode {
@@ -256,6 +276,12 @@ impl fmt::Display for HubEvent {
             HubEvent::Opened { client, peer, channel } => {
                 write!(f, "client {client} ({peer}) opened channel {channel}")
             }
+            HubEvent::LoneChannel { client, peer, channel, others } => write!(
+                f,
+                "client {client} ({peer}) opened channel {channel}, which nothing else is on (channels in use: {}): \
+                 a misspelt channel name?",
+                others.join(", ")
+            ),
             HubEvent::RawMode { client, peer } => write!(f, "client {client} ({peer}) entered raw mode"),
             HubEvent::ProtocolError { client, peer, error } => write!(f, "client {client} ({peer}): {error}"),
             HubEvent::ErrorsSuppressed { client, peer } => {
@@ -372,13 +398,7 @@ impl Hub {
 
     /// Names of the channels that have members, sorted.
     pub fn channels(&self) -> Vec<String> {
-        let mut names: Vec<String> = lock(&self.inner.channels)
-            .iter()
-            .filter(|(_, channel)| channel.strong_count() > 0)
-            .map(|(name, _)| name.clone())
-            .collect();
-        names.sort();
-        names
+        self.inner.channel_names()
     }
 
     /// Stops the hub: closes the listener, disconnects every client, closes every attached
@@ -439,6 +459,17 @@ fn wake_address(addr: SocketAddr) -> SocketAddr {
 impl HubInner {
     fn emit(&self, event: &HubEvent) {
         (self.config.observer)(event);
+    }
+
+    /// Names of the channels that have members, sorted.
+    fn channel_names(&self) -> Vec<String> {
+        let mut names: Vec<String> = lock(&self.channels)
+            .iter()
+            .filter(|(_, channel)| channel.strong_count() > 0)
+            .map(|(name, _)| name.clone())
+            .collect();
+        names.sort();
+        names
     }
 
     fn channel(&self, name: &str) -> Result<Arc<Channel>, TransportError> {
@@ -704,6 +735,20 @@ impl Session<'_> {
         match (message, self.mode) {
             (Message::Echo, _) => self.connection.reply(Message::Echo),
             (Message::Open(name), Mode::NoBus) => {
+                let served = &self.hub.config.channels;
+                if !served.is_empty() && !served.contains(&name) {
+                    return self
+                        .refuse(format!("channel {name} is not served here; this hub serves {}", served.join(", ")));
+                }
+                let others = self.hub.channel_names();
+                if !others.is_empty() && !others.contains(&name) {
+                    self.hub.emit(&HubEvent::LoneChannel {
+                        client: self.connection.id,
+                        peer: self.connection.peer,
+                        channel: name.clone(),
+                        others,
+                    });
+                }
                 match self.hub.channel(&name) {
                     Ok(channel) => self.channel = Some(channel),
                     Err(error) => return self.refuse(format!("cannot open channel {name}: {error}")),

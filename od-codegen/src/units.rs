@@ -611,6 +611,11 @@ fn enum_items(
         let doc = format!(" {d:?}.");
         quote!(#[doc = #doc] #id)
     });
+    let dim_all = dims.iter().map(|d| {
+        let id = dim_ident(*d);
+        quote!(Dimension::#id)
+    });
+    let n_all = Literal::usize_unsuffixed(dims.len());
     let dim_arms = dims.iter().enumerate().map(|(i, d)| {
         let id = dim_ident(*d);
         let i = Literal::usize_unsuffixed(i);
@@ -652,6 +657,9 @@ fn enum_items(
         pub enum Dimension { #(#dim_variants,)* }
 
         impl Dimension {
+            /// Every dimension, in slot order.
+            const ALL: [Dimension; #n_all] = [#(#dim_all),*];
+
             const fn slot(self) -> usize {
                 match self { #(#dim_arms,)* }
             }
@@ -740,8 +748,9 @@ fn units_struct(n_dims: usize, system_arms: &[TokenStream]) -> TokenStream {
     let rt = crate::support::rt();
     let n_dims = Literal::usize_unsuffixed(n_dims);
     quote! {
-        /// The conversions of one configured device.
-        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        /// The conversions of one configured device. Display and Debug say its system and what
+        /// one raw unit is in each dimension: `ds402-factors: 1 raw = 1/10000 user (Position), …`.
+        #[derive(Clone, Copy, PartialEq, Eq)]
         pub struct Units {
             system: System,
             /// Physical value per raw unit (prepared for fast exact conversions both ways),
@@ -749,6 +758,26 @@ fn units_struct(n_dims: usize, system_arms: &[TokenStream]) -> TokenStream {
             factor: [Option<(#rt::Scale, Unit)>; #n_dims],
             /// Internal value (increments or motor revolutions) per raw unit, per dimension.
             internal: [Option<Ratio>; #n_dims],
+        }
+
+        impl core::fmt::Display for Units {
+            fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+                f.write_str(self.system.name())?;
+                let mut sep = ": 1 raw = ";
+                for d in Dimension::ALL {
+                    if let (Some(factor), Some(unit)) = (self.factor(d), self.unit(d)) {
+                        write!(f, "{sep}{factor} {} ({d:?})", unit.symbol())?;
+                        sep = ", ";
+                    }
+                }
+                Ok(())
+            }
+        }
+
+        impl core::fmt::Debug for Units {
+            fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+                write!(f, "Units({self})")
+            }
         }
 
         impl Units {

@@ -36,7 +36,7 @@ struct Args {
     /// and `monitor` decode PDOs and EMCY texts (from the sidecar FILE.toml beside it).
     #[arg(long, global = true, value_name = "[NODE=]FILE")]
     eds: Vec<String>,
-    /// One JSON object a line (read, scan, monitor).
+    /// One JSON object a line (read, write, scan, monitor, boot, axis).
     #[arg(long, global = true)]
     json: bool,
     /// How long to wait for each SDO answer, in milliseconds.
@@ -68,6 +68,10 @@ enum Cmd {
         /// The highest node id asked.
         #[arg(long, default_value_t = 127)]
         last: u8,
+        /// Times a node's first read (1000h) is asked again after no answer within --timeout:
+        /// a node that missed one request on a busy or lossy bus is still found.
+        #[arg(long, default_value_t = 1)]
+        retries: u8,
     },
     /// Reads an object.
     Read {
@@ -148,8 +152,8 @@ enum AxisCmd {
         /// Relative to the current target.
         #[arg(long)]
         relative: bool,
-        /// Profile velocity (6081h), acceleration and deceleration (6083h, 6084h), raw units;
-        /// unset ones keep the drive's values.
+        /// Profile velocity (6081h), raw units; unset: the drive's own (a move with 0 is
+        /// refused before it starts).
         #[arg(long)]
         velocity: Option<u32>,
         /// Profile acceleration and deceleration (6083h, 6084h), raw units.
@@ -284,6 +288,9 @@ async fn run(args: Args) -> Result<(), Fail> {
             let node = node_id(&node.to_string())?;
             let device = devices.for_node(node);
             let t = target(&object, device)?;
+            if let Some(why) = t.not_readable() {
+                return Err(usage(why));
+            }
             let bytes = bus.node(node).map_err(fail)?.read_bytes(t.index, t.sub).await.map_err(fail)?;
             let shown = show(&bytes, t.data_type, t.index, t.sub);
             if args.json {
@@ -299,6 +306,9 @@ async fn run(args: Args) -> Result<(), Fail> {
             let node = node_id(&node.to_string())?;
             let device = devices.for_node(node);
             let t = target(&object, device)?;
+            if let Some(why) = t.not_writable() {
+                return Err(usage(why));
+            }
             let bytes = match t.data_type {
                 Some(dt) => encode(&value, dt),
                 None => encode_typed(&value),
@@ -334,21 +344,37 @@ async fn run(args: Args) -> Result<(), Fail> {
                 return Err(Fail(1, "the network did not boot: see the nodes above".to_owned()));
             }
         }
-        Cmd::Scan { last } => scan(&bus, last.clamp(1, 127), args.json, args.timeout).await?,
+        Cmd::Scan { last, retries } => scan(&bus, last.clamp(1, 127), args.json, args.timeout, retries).await?,
         Cmd::Monitor { count, duration } => monitor(&bus, &devices, count, duration, args.json).await?,
         Cmd::Axis { node, action } => {
             let node = node_id(&node.to_string())?;
-            let axis = Axis::new(bus.node(node).map_err(fail)?);
+            let mut axis = Axis::new(bus.node(node).map_err(fail)?);
             let device = devices.for_node(node);
+            // The drive's own warning register and EMCY texts, from its sidecar, in the errors.
+            if let Some(sidecar) = device.and_then(|d| d.sidecar.as_ref()) {
+                if let Some(register) = od_master::StatusRegister::from_sidecar(sidecar) {
+                    axis = axis.with_register(register);
+                }
+                bus.set_emcy_texts(node, od_master::EmcyTexts::from_sidecar(sidecar)).await.map_err(fail)?;
+            }
             match action {
-                AxisCmd::Enable => axis.enable().await.map_err(fail)?,
+                AxisCmd::Enable => {
+                    axis.enable().await.map_err(fail)?;
+                    if args.json {
+                        print_json(&json!({ "node": node, "state": "Operation enabled" }));
+                    }
+                }
                 AxisCmd::Home { method } => {
                     let method = match method {
                         Some(m) => m,
                         None => axis.node().read::<i8>(0x6098, 0).await.map_err(fail)?,
                     };
                     let pos = axis.home(&Homing::method(method)).await.map_err(fail)?;
-                    println!("homed (method {method}), position {pos}");
+                    if args.json {
+                        print_json(&json!({ "node": node, "homed": true, "method": method, "position": pos }));
+                    } else {
+                        println!("homed (method {method}), position {pos}");
+                    }
                 }
                 AxisCmd::Move { to, relative, velocity, acceleration, within } => {
                     let timeout = seconds(within)?;
@@ -362,11 +388,18 @@ async fn run(args: Args) -> Result<(), Fail> {
                     };
                     let to = axis_value(&axis, device, &to, Dimension::Position).await?;
                     let pos = axis.move_to(to, &m).await.map_err(fail)?;
-                    println!("position {pos}");
+                    if args.json {
+                        print_json(&json!({ "node": node, "target": to, "position": pos }));
+                    } else {
+                        println!("position {pos}");
+                    }
                 }
                 AxisCmd::Velocity { value } => {
                     let value = axis_value(&axis, device, &value, Dimension::Velocity).await?;
-                    axis.run_velocity(value, None, None).await.map_err(fail)?
+                    axis.run_velocity(value, None, None).await.map_err(fail)?;
+                    if args.json {
+                        print_json(&json!({ "node": node, "velocity": value }));
+                    }
                 }
             }
         }
@@ -393,13 +426,16 @@ async fn axis_value(axis: &Axis, device: Option<&Device>, text: &str, dim: Dimen
     cli::units::to_raw(number, unit, dim, sidecar, &values).map_err(usage)
 }
 
-async fn scan(bus: &Bus, last: u8, json: bool, timeout: u64) -> Result<(), Fail> {
+/// Every node asked at once, each with `timeout` per answer and its first read retried
+/// `retries` times; the others (identity, name) once, the node having answered.
+async fn scan(bus: &Bus, last: u8, json: bool, timeout: u64, retries: u8) -> Result<(), Fail> {
     let fail = |e: od_master::Error| Fail(1, e.to_string());
     let mut tasks = Vec::new();
     for id in 1..=last {
-        let node = bus.node(id).map_err(fail)?.with_timeout(Duration::from_millis(timeout.min(300))).with_retries(0);
+        let node = bus.node(id).map_err(fail)?.with_timeout(Duration::from_millis(timeout)).with_retries(0);
+        let probe = node.clone().with_retries(retries);
         tasks.push(tokio::spawn(async move {
-            let device_type = node.read::<u32>(0x1000, 0).await.ok()?;
+            let device_type = probe.read::<u32>(0x1000, 0).await.ok()?;
             let mut identity = [None; 4];
             for (sub, slot) in identity.iter_mut().enumerate() {
                 *slot = node.read::<u32>(0x1018, sub as u8 + 1).await.ok();

@@ -13,20 +13,21 @@
 //! | profile velocity | 60FFh, 6083h, 6084h | [`Axis::run_velocity`] |
 //! | cyclic synchronous position: a set-point every SYNC | 1400h+, 1600h+, 607Ah | [`Axis::cyclic_position`], [`Csp::send`] |
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use od_runtime::cia402::State;
 use od_runtime::master::{PdoField, PdoMapping, PdoValue};
 use od_runtime::od::DataType;
 use od_runtime::pdo::{Direction, MapEntry};
-use tokio::sync::watch;
+use tokio::sync::{broadcast, watch};
 use tokio::time::Instant;
 
 use crate::bus::CyclicPdo;
-use crate::error::{AxisError, AxisErrorKind, Error};
+use crate::error::{AxisError, AxisErrorKind, Error, Impossible, StopReason};
+use crate::event::Event;
 use crate::node::{Node, SdoValue};
+use crate::register::StatusRegister;
 use crate::remote::{Quantity, Scaling, UnitError, dim};
 
 const CONTROLWORD: u16 = 0x6040;
@@ -37,7 +38,9 @@ const POSITION_ACTUAL: u16 = 0x6064;
 const TARGET_POSITION: u16 = 0x607A;
 
 /// Statusword bits.
+const SW_WARNING: u16 = 1 << 7;
 const SW_TARGET_REACHED: u16 = 1 << 10;
+const SW_INTERNAL_LIMIT: u16 = 1 << 11;
 const SW_BIT12: u16 = 1 << 12;
 const SW_BIT13: u16 = 1 << 13;
 
@@ -153,11 +156,11 @@ impl Default for Move {
 pub struct Axis {
     node: Node,
     config: AxisConfig,
-    /// The last statusword read (bit 16 set: none yet), for error messages.
-    last: AtomicU32,
+    /// The last statusword read and when, for error messages.
+    last: Mutex<Option<(u16, Instant)>>,
+    /// The drive's own warning or status register, read into errors.
+    register: Option<Arc<StatusRegister>>,
 }
-
-const NONE: u32 = 1 << 16;
 
 impl Axis {
     /// The drive on `node`, with the default [`AxisConfig`].
@@ -167,7 +170,15 @@ impl Axis {
 
     /// The drive on `node` with `config`.
     pub fn with_config(node: Node, config: AxisConfig) -> Self {
-        Self { node, config, last: AtomicU32::new(NONE) }
+        Self { node, config, last: Mutex::new(None), register: None }
+    }
+
+    /// This drive with its vendor's warning or status register (from its sidecar:
+    /// [`StatusRegister::from_sidecar`]): an operation that fails reads it, and its error says
+    /// which of its bits are set, in the sidecar's words.
+    pub fn with_register(mut self, register: StatusRegister) -> Self {
+        self.register = Some(Arc::new(register));
+        self
     }
 
     /// The node.
@@ -181,22 +192,38 @@ impl Axis {
         UnitAxis { axis: self, units: Arc::new(units) }
     }
 
-    fn last_statusword(&self) -> Option<u16> {
-        let v = self.last.load(Ordering::Relaxed);
-        (v & NONE == 0).then_some(v as u16)
+    fn last_statusword(&self) -> Option<(u16, Instant)> {
+        *self.last.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    /// An error about `index`/`sub` with the drive's last known state.
+    /// An error about `index`/`sub` with the last statusword seen and its age.
     fn error(&self, index: u16, sub: u8, kind: AxisErrorKind) -> Error {
-        let statusword = self.last_statusword();
+        let last = self.last_statusword();
+        let statusword = last.map(|(sw, _)| sw);
         Error::Axis(Box::new(AxisError {
             node: self.node.id(),
             state: statusword.and_then(State::from_statusword),
             statusword,
+            seen: last.map(|(_, at)| at.elapsed()),
             index,
             sub,
             kind,
+            register: None,
         }))
+    }
+
+    /// `error` with the drive's register read into it (where the axis has one and it reads).
+    async fn explained(&self, index: u16, sub: u8, kind: AxisErrorKind) -> Error {
+        let mut e = self.error(index, sub, kind);
+        if let (Some(reg), Error::Axis(a)) = (&self.register, &mut e)
+            && let Ok(bytes) = self.node.read_bytes(reg.index, reg.sub).await
+            && (1..=4).contains(&bytes.len())
+        {
+            let mut b = [0u8; 4];
+            b[..bytes.len()].copy_from_slice(&bytes);
+            a.register = Some(reg.reading(u32::from_le_bytes(b)));
+        }
+        e
     }
 
     async fn read<T: SdoValue>(&self, index: u16, sub: u8) -> Result<T, Error> {
@@ -222,7 +249,7 @@ impl Axis {
     /// Reads the statusword.
     pub async fn statusword(&self) -> Result<u16, Error> {
         let sw: u16 = self.read(STATUSWORD, 0).await?;
-        self.last.store(u32::from(sw), Ordering::Relaxed);
+        *self.last.lock().unwrap_or_else(|e| e.into_inner()) = Some((sw, Instant::now()));
         Ok(sw)
     }
 
@@ -245,7 +272,21 @@ impl Axis {
     /// Reads the statusword every poll period until `done` holds for it; fails when the drive
     /// faults (unless `done` accepts a fault) or `timeout` passes.
     async fn wait(&self, what: &str, timeout: Duration, done: impl Fn(u16) -> bool) -> Result<u16, Error> {
+        self.wait_guarded(what, timeout, Guard::State, None, done).await
+    }
+
+    /// [`wait`](Self::wait), also stopping as soon as `guard` says the wait cannot end well;
+    /// `before` is the statusword before the command waited on (else the wait's first).
+    async fn wait_guarded(
+        &self,
+        what: &str,
+        timeout: Duration,
+        guard: Guard,
+        before: Option<u16>,
+        done: impl Fn(u16) -> bool,
+    ) -> Result<u16, Error> {
         let end = Instant::now() + timeout;
+        let mut watch = guard.watch(self, before);
         loop {
             let sw = self.statusword().await?;
             if done(sw) {
@@ -253,11 +294,20 @@ impl Axis {
             }
             if matches!(State::from_statusword(sw), Some(State::Fault | State::FaultReactionActive)) {
                 let error_code = self.error_code().await;
-                return Err(self.error(STATUSWORD, 0, AxisErrorKind::Fault { error_code }));
+                return Err(self.explained(STATUSWORD, 0, AxisErrorKind::Fault { error_code }).await);
+            }
+            if let Some(why) = watch.check(sw) {
+                if matches!(why, StopReason::Emergency { .. }) {
+                    // The EMCY can come before the statusword shows why: the error shows it.
+                    let _ = self.statusword().await;
+                }
+                let kind = AxisErrorKind::Stopped { what: what.to_owned(), why };
+                return Err(self.explained(STATUSWORD, 0, kind).await);
             }
             if Instant::now() >= end {
                 let timeout_ms = u64::try_from(timeout.as_millis()).unwrap_or(u64::MAX);
-                return Err(self.error(STATUSWORD, 0, AxisErrorKind::Timeout { what: what.to_owned(), timeout_ms }));
+                let kind = AxisErrorKind::Timeout { what: what.to_owned(), timeout_ms };
+                return Err(self.explained(STATUSWORD, 0, kind).await);
             }
             tokio::time::sleep(self.config.poll).await;
         }
@@ -361,6 +411,10 @@ impl Axis {
     /// actual value (6064h) at the end.
     pub async fn home(&self, homing: impl Into<Homing>) -> Result<i32, Error> {
         let homing = &homing.into();
+        if homing.method == 0 {
+            return Err(self.error(0x6098, 0, AxisErrorKind::Impossible(Impossible::NoHomingMethod)));
+        }
+        self.check_mode(mode::HOMING).await?;
         self.set(0x6098, 0, homing.method).await?;
         if let Some(v) = homing.speed_switch {
             self.set(0x6099, 1, v).await?;
@@ -379,7 +433,7 @@ impl Axis {
         self.controlword(0x000F).await?;
         self.controlword(0x001F).await?;
         let result = self
-            .wait("homing attained", homing.timeout, |sw| {
+            .wait_guarded("homing attained", homing.timeout, Guard::Homing, None, |sw| {
                 sw & SW_BIT13 != 0 || sw & (SW_BIT12 | SW_TARGET_REACHED) == SW_BIT12 | SW_TARGET_REACHED
             })
             .await;
@@ -402,6 +456,8 @@ impl Axis {
     /// mode, enables the drive, and hands the set-point over: bit 4 up, wait for the
     /// acknowledgement (bit 12), bit 4 down. Does not wait for the target.
     pub async fn set_point(&self, target: i32, m: &Move) -> Result<(), Error> {
+        self.check_mode(mode::PROFILE_POSITION).await?;
+        self.check_velocity(m).await?;
         self.set_mode(mode::PROFILE_POSITION).await?;
         if let Some(v) = m.velocity {
             self.set(0x6081, 0, v).await?;
@@ -416,17 +472,28 @@ impl Axis {
         let bits = 0x000F | if m.immediate { 1 << 5 } else { 0 } | if m.relative { 1 << 6 } else { 0 };
         // A new set-point needs bit 4 low and the previous acknowledgement gone.
         self.controlword(bits).await?;
-        self.wait("bit 12 clear before a new set-point", self.config.state_timeout, |sw| sw & SW_BIT12 == 0).await?;
+        let before = self
+            .wait("bit 12 clear before a new set-point", self.config.state_timeout, |sw| sw & SW_BIT12 == 0)
+            .await?;
         self.set(TARGET_POSITION, 0, target).await?;
         self.controlword(bits | 0x10).await?;
-        let acknowledged =
-            self.wait("set-point acknowledge", m.timeout.min(self.config.state_timeout), |sw| sw & SW_BIT12 != 0);
+        let acknowledged = self.wait_guarded(
+            "set-point acknowledge",
+            m.timeout.min(self.config.state_timeout),
+            Guard::Motion,
+            Some(before),
+            |sw| sw & SW_BIT12 != 0,
+        );
         if let Err(e) = acknowledged.await {
             let _ = self.node.write(CONTROLWORD, 0, bits).await;
             return Err(match e {
                 Error::Axis(a) if matches!(a.kind, AxisErrorKind::Timeout { .. }) => {
                     let timeout_ms = u64::try_from(m.timeout.min(self.config.state_timeout).as_millis()).unwrap_or(0);
-                    self.error(TARGET_POSITION, 0, AxisErrorKind::SetPoint { timeout_ms })
+                    let mut e = self.error(TARGET_POSITION, 0, AxisErrorKind::SetPoint { timeout_ms });
+                    if let Error::Axis(b) = &mut e {
+                        b.register = a.register;
+                    }
+                    e
                 }
                 e => e,
             });
@@ -437,7 +504,9 @@ impl Axis {
     /// Waits for "target reached" (bit 10), failing on a following error (bit 13), a fault or
     /// the timeout.
     pub async fn wait_target_reached(&self, timeout: Duration) -> Result<(), Error> {
-        let sw = self.wait("target reached", timeout, |sw| sw & (SW_TARGET_REACHED | SW_BIT13) != 0).await?;
+        let sw = self
+            .wait_guarded("target reached", timeout, Guard::Motion, None, |sw| sw & (SW_TARGET_REACHED | SW_BIT13) != 0)
+            .await?;
         if sw & SW_TARGET_REACHED == 0 {
             return Err(self.error(TARGET_POSITION, 0, AxisErrorKind::Bit13("following error")));
         }
@@ -460,6 +529,7 @@ impl Axis {
         acceleration: Option<u32>,
         deceleration: Option<u32>,
     ) -> Result<(), Error> {
+        self.check_mode(mode::PROFILE_VELOCITY).await?;
         self.set_mode(mode::PROFILE_VELOCITY).await?;
         if let Some(v) = acceleration {
             self.set(0x6083, 0, v).await?;
@@ -501,6 +571,103 @@ impl Axis {
         self.enable().await?;
         let pdo = self.node.bus().cyclic_pdo(cob_id, mapping, &[PdoValue::Signed(i64::from(here))]).await?;
         Ok(Csp { pdo, syncs: self.node.bus().syncs() })
+    }
+}
+
+/// What makes an operation impossible, checked before it starts.
+impl Axis {
+    /// Fails at once when the drive's supported drive modes (6502h) lack `mode`. A drive
+    /// without 6502h (or one that refuses to read it) is not checked.
+    async fn check_mode(&self, mode: i8) -> Result<(), Error> {
+        let Some(bit) = crate::error::supported_mode_bit(mode) else { return Ok(()) };
+        let supported = match self.node.read::<u32>(0x6502, 0).await {
+            Ok(v) => v,
+            Err(Error::Sdo { error, .. }) if matches!(error.error, od_runtime::master::SdoError::Server(_)) => {
+                return Ok(());
+            }
+            Err(e) => return Err(self.error(0x6502, 0, AxisErrorKind::Sdo(Box::new(e)))),
+        };
+        if supported & bit == 0 {
+            return Err(self.error(0x6502, 0, AxisErrorKind::Impossible(Impossible::Mode { mode, supported })));
+        }
+        Ok(())
+    }
+
+    /// Fails at once when the move's profile velocity, or else the drive's 6081h, is 0.
+    async fn check_velocity(&self, m: &Move) -> Result<(), Error> {
+        let velocity = match m.velocity {
+            Some(v) => v,
+            None => self.read::<u32>(0x6081, 0).await?,
+        };
+        if velocity == 0 {
+            return Err(self.error(0x6081, 0, AxisErrorKind::Impossible(Impossible::NoProfileVelocity)));
+        }
+        Ok(())
+    }
+}
+
+/// What, beside a fault, ends a wait before its timeout.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Guard {
+    /// A state change: only a fault.
+    State,
+    /// A homing: the drive left Operation enabled. Not statusword bits 7 and 11 nor EMCYs:
+    /// homing methods on limit switches run into them on purpose.
+    Homing,
+    /// A set-point or a move: the drive left Operation enabled, statusword bit 11 (internal
+    /// limit) or bit 7 (warning) went up, or the drive sent an EMCY other than 0000h.
+    Motion,
+}
+
+impl Guard {
+    fn watch(self, axis: &Axis, before: Option<u16>) -> GuardWatch {
+        let emcy = (self == Guard::Motion).then(|| axis.node.bus().events());
+        GuardWatch { guard: self, node: axis.node.id(), first: before, emcy }
+    }
+}
+
+/// A [`Guard`] over one wait: the statusword it started with, and the bus's events.
+struct GuardWatch {
+    guard: Guard,
+    node: u8,
+    first: Option<u16>,
+    emcy: Option<broadcast::Receiver<Event>>,
+}
+
+impl GuardWatch {
+    /// Why the wait should stop, given the statusword just read. Bits 7 and 11 count when they
+    /// go up during the wait (one already up at its start is the drive's standing condition).
+    fn check(&mut self, sw: u16) -> Option<StopReason> {
+        let first = *self.first.get_or_insert(sw);
+        if self.guard == Guard::State {
+            return None;
+        }
+        let state = State::from_statusword(sw);
+        if state != Some(State::OperationEnabled) {
+            return Some(StopReason::LeftOperationEnabled(state));
+        }
+        if self.guard == Guard::Homing {
+            return None;
+        }
+        if let Some(events) = &mut self.emcy {
+            loop {
+                match events.try_recv() {
+                    Ok(Event::Emergency { emcy, text }) if emcy.node == self.node && emcy.code != 0 => {
+                        return Some(StopReason::Emergency { code: emcy.code, text });
+                    }
+                    Ok(_) | Err(broadcast::error::TryRecvError::Lagged(_)) => {}
+                    Err(_) => break,
+                }
+            }
+        }
+        let rose = |bit: u16| sw & bit != 0 && first & bit == 0;
+        if rose(SW_INTERNAL_LIMIT) {
+            return Some(StopReason::InternalLimit);
+        }
+        if rose(SW_WARNING) {
+            return Some(StopReason::Warning);
+        }
+        None
     }
 }
 

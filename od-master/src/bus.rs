@@ -16,15 +16,15 @@ use od_bus::CanFrame;
 use od_bus::tokio::{Bus as Link, BusReceiver, BusSender, LinkState};
 use od_runtime::master::nmt::{self, Target};
 use od_runtime::master::{
-    Done, Emergency, HeartbeatProducer, NodeMonitor, PdoMapping, PdoValue, SdoClient, SdoError, SyncProducer,
-    TransferError, Watch,
+    Direction, Done, Emergency, HeartbeatProducer, NodeMonitor, PdoMapping, PdoValue, SdoClient, SdoError,
+    SyncProducer, TransferError, Watch,
 };
 use od_runtime::od::AbortCode;
 use od_runtime::{Frame, Micros, NmtCommand, NmtState, NodeId};
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 use tokio::time::Instant;
 
-use crate::error::Error;
+use crate::error::{Error, SdoContext};
 use crate::event::{EmcyTexts, Event};
 use crate::sdo_options::SdoOptions;
 
@@ -147,6 +147,8 @@ impl Bus {
             rx,
             link: link_state.clone(),
             link_open: true,
+            down_since: None,
+            heard: 0,
             commands: command_rx,
             start,
             channels: HashMap::new(),
@@ -370,6 +372,8 @@ struct Channel {
 struct Active {
     request: SdoRequest,
     attempts: u8,
+    /// Waiting for the link to come back, until this time (the transfer is not running).
+    parked: Option<Micros>,
 }
 
 struct Task {
@@ -377,6 +381,11 @@ struct Task {
     rx: BusReceiver,
     link: watch::Receiver<LinkState>,
     link_open: bool,
+    /// Since when the link has been down (`None` while it is up).
+    down_since: Option<Micros>,
+    /// The nodes something was received from since the start (bit n: node n), by the CiA 301
+    /// default identifiers of their EMCY, TPDOs, SDO answers and heartbeats.
+    heard: u128,
     commands: mpsc::Receiver<Command>,
     start: Instant,
     channels: HashMap<u8, Channel>,
@@ -523,6 +532,7 @@ impl Task {
                 changed = self.link.changed(), if self.link_open => match changed {
                     Ok(()) => {
                         let state = self.link.borrow_and_update().clone();
+                        self.link_changed(&state);
                         let _ = self.events.send(Event::Link(state));
                     }
                     // A bus whose link never changes (memory, SocketCAN).
@@ -567,7 +577,8 @@ impl Task {
     }
 
     fn deadline(&self) -> Option<Micros> {
-        let sdo = self.channels.values().filter_map(|c| c.client.deadline());
+        let parked = self.channels.values().filter_map(|c| c.active.as_ref().and_then(|a| a.parked));
+        let sdo = self.channels.values().filter_map(|c| c.client.deadline()).chain(parked);
         let others = [
             self.monitor.deadline(),
             self.heartbeat.as_ref().and_then(HeartbeatProducer::deadline),
@@ -587,6 +598,7 @@ impl Task {
         for done in finished {
             self.finish(done, now);
         }
+        self.give_up_parked(now);
         let out = &mut self.out;
         let events = &self.events;
         self.monitor.poll(
@@ -689,8 +701,14 @@ impl Task {
                 // The caller stopped waiting before the transfer began.
                 continue;
             }
+            if link_down(&self.link) && !request.options.link_wait.is_zero() {
+                // Nothing would go out: wait for the link instead.
+                let parked = Some(now.saturating_add(micros(request.options.link_wait)));
+                channel.active = Some(Active { request, attempts: 0, parked });
+                return;
+            }
             match start(&mut channel.client, &request, now) {
-                Ok(()) => channel.active = Some(Active { request, attempts: 1 }),
+                Ok(()) => channel.active = Some(Active { request, attempts: 1, parked: None }),
                 Err(error) => {
                     let _ = request.reply.send(Err(error));
                 }
@@ -701,6 +719,8 @@ impl Task {
     /// A transfer ended: answer its caller, or start it again when the rules allow.
     fn finish(&mut self, done: Done<Vec<u8>>, now: Micros) {
         let node = done.node;
+        let link = self.link_context(now);
+        let heard = self.heard & (1 << node) != 0;
         let Some(channel) = self.channels.get_mut(&node) else { return };
         let Some(mut active) = channel.active.take() else { return };
         match done.result {
@@ -721,13 +741,30 @@ impl Task {
                     && may_repeat
                     && active.attempts <= active.request.options.retries
                     && !active.request.reply.is_closed();
-                if retry && start(&mut channel.client, &active.request, now).is_ok() {
+                let link_wait = active.request.options.link_wait;
+                if link.is_some()
+                    && retriable(error)
+                    && may_repeat
+                    && !link_wait.is_zero()
+                    && !active.request.reply.is_closed()
+                {
+                    // Lost to a link that is down: start again once it is back.
+                    active.parked = Some(now.saturating_add(micros(link_wait)));
+                    channel.active = Some(active);
+                    return;
+                }
+                if retry && link.is_none() && start(&mut channel.client, &active.request, now).is_ok() {
                     active.attempts += 1;
                     channel.active = Some(active);
                     return;
                 }
+                let context = match link {
+                    Some(link) => Some(link),
+                    None if error.is_timeout() && !heard => Some(SdoContext::NeverHeard),
+                    None => None,
+                };
                 let error = TransferError { node, direction: done.direction, index: done.index, sub: done.sub, error };
-                let _ = active.request.reply.send(Err(Error::Sdo { error, attempts: active.attempts }));
+                let _ = active.request.reply.send(Err(Error::Sdo { error, attempts: active.attempts, context }));
             }
         }
         self.next(node, now);
@@ -741,6 +778,11 @@ impl Task {
         let Ok(frame) = Frame::try_from(can) else { return };
         let now = self.now();
         let id = frame.id();
+        let from = id & 0x7F;
+        // EMCY, TPDO 1..4, SDO answer, heartbeat: the node is on the bus.
+        if from != 0 && matches!(id >> 7, 0x1 | 0x3 | 0x5 | 0x7 | 0x9 | 0xB | 0xE) {
+            self.heard |= 1 << from;
+        }
         if (0x581..=0x5FF).contains(&id)
             && let Some(channel) = self.channels.get_mut(&((id - 0x580) as u8))
             && let Some(done) = channel.client.on_frame(&frame, now)
@@ -786,6 +828,82 @@ impl Task {
             });
         }
     }
+}
+
+impl Task {
+    /// The link went down or came back: transfers waiting for it start again.
+    fn link_changed(&mut self, state: &LinkState) {
+        let now = self.now();
+        match state {
+            LinkState::Up { .. } => {
+                self.down_since = None;
+                let nodes: Vec<u8> = self.channels.keys().copied().collect();
+                for node in nodes {
+                    let Some(channel) = self.channels.get_mut(&node) else { continue };
+                    let Some(active) = channel.active.as_mut().filter(|a| a.parked.is_some()) else { continue };
+                    active.parked = None;
+                    match start(&mut channel.client, &active.request, now) {
+                        Ok(()) => active.attempts = active.attempts.saturating_add(1),
+                        Err(error) => {
+                            if let Some(active) = channel.active.take() {
+                                let _ = active.request.reply.send(Err(error));
+                            }
+                            self.next(node, now);
+                        }
+                    }
+                }
+            }
+            LinkState::Down { .. } => {
+                self.down_since.get_or_insert(now);
+            }
+            LinkState::Closed => {}
+        }
+    }
+
+    /// What to say about the link when a transfer fails now: `Some` while it is down.
+    fn link_context(&self, now: Micros) -> Option<SdoContext> {
+        match &*self.link.borrow() {
+            LinkState::Down { reason, .. } => Some(SdoContext::LinkDown {
+                reason: reason.clone(),
+                down_for: Duration::from_micros(now.saturating_sub(self.down_since.unwrap_or(now))),
+            }),
+            _ => None,
+        }
+    }
+
+    /// Transfers that waited for the link as long as they may fail, saying it is down.
+    fn give_up_parked(&mut self, now: Micros) {
+        let due: Vec<u8> = self
+            .channels
+            .iter()
+            .filter(|(_, c)| c.active.as_ref().and_then(|a| a.parked).is_some_and(|at| at <= now))
+            .map(|(n, _)| *n)
+            .collect();
+        for node in due {
+            let context = self.link_context(now).or_else(|| {
+                Some(SdoContext::LinkDown { reason: "link state unknown".into(), down_for: Duration::ZERO })
+            });
+            let Some(active) = self.channels.get_mut(&node).and_then(|c| c.active.take()) else { continue };
+            let r = &active.request;
+            let direction = match r.op {
+                Op::Upload(_) => Direction::Upload,
+                Op::Download { .. } => Direction::Download,
+            };
+            let error = TransferError {
+                node,
+                direction,
+                index: r.index,
+                sub: r.sub,
+                error: SdoError::Client(AbortCode::TIMEOUT),
+            };
+            let _ = active.request.reply.send(Err(Error::Sdo { error, attempts: active.attempts, context }));
+            self.next(node, now);
+        }
+    }
+}
+
+fn link_down(link: &watch::Receiver<LinkState>) -> bool {
+    matches!(*link.borrow(), LinkState::Down { .. })
 }
 
 /// Starts `request` on `client`, with the request's timeout.

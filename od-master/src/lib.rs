@@ -25,6 +25,7 @@ pub mod bus;
 pub mod error;
 pub mod event;
 pub mod node;
+pub mod register;
 pub mod remote;
 mod sdo_options;
 mod unit_error;
@@ -32,9 +33,10 @@ mod unit_error;
 pub use axis::{Axis, AxisConfig, Homing, HomingMethod, Move, UnitAxis};
 pub use boot::{BootError, BootOptions, Network, NodeReport};
 pub use bus::{Bus, Config, CyclicPdo, Tpdo};
-pub use error::{AxisError, AxisErrorKind, Error};
+pub use error::{AxisError, AxisErrorKind, Error, Impossible, RegisterReading, SdoContext, StopReason};
 pub use event::{EmcyTexts, Event};
 pub use node::{Node, SdoOptions, SdoValue};
+pub use register::StatusRegister;
 
 /// The protocol core's types that appear in this crate's API.
 pub use od_runtime::cia402::State;

@@ -105,6 +105,12 @@ impl Node {
         self
     }
 
+    /// This node with another wait for a link that is down ([`SdoOptions::link_wait`]).
+    pub fn with_link_wait(mut self, link_wait: Duration) -> Self {
+        self.options.link_wait = link_wait;
+        self
+    }
+
     /// Reads `index`/`sub` (an SDO upload), retried on lost answers.
     pub async fn read_bytes(&self, index: u16, sub: u8) -> Result<Vec<u8>, Error> {
         self.bus.sdo(self.id, index, sub, Op::Upload(self.options.max_len), self.options).await

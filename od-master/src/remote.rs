@@ -53,8 +53,18 @@ pub mod access {
     #[derive(Clone, Copy, Debug)]
     pub struct Rw;
     /// An access that allows reading.
+    #[diagnostic::on_unimplemented(
+        message = "this object is write-only: it has no `read`",
+        label = "write-only object",
+        note = "its EDS gives it AccessType wo: it can be written, not read"
+    )]
     pub trait Read {}
     /// An access that allows writing.
+    #[diagnostic::on_unimplemented(
+        message = "this object is read-only: it has no `write`",
+        label = "read-only object",
+        note = "its EDS gives it AccessType ro or const: it can be read, not written"
+    )]
     pub trait Write {}
     impl Read for Ro {}
     impl Read for Rw {}
@@ -352,9 +362,15 @@ impl<'a, T: Wire, A, D> Object<'a, T, A, D> {
     }
 }
 
-impl<T: Wire, A: access::Read, D> Object<'_, T, A, D> {
+// The access bounds are on the methods, not the impl blocks: calling `write` on a read-only
+// object is then an unsatisfied bound with the access traits' own message ("this object is
+// read-only"), not a method missing for unsatisfied bounds.
+impl<T: Wire, A, D> Object<'_, T, A, D> {
     /// Reads the entry (an SDO upload, retried on lost answers).
-    pub async fn read(&self) -> Result<T::Value, Error> {
+    pub async fn read(&self) -> Result<T::Value, Error>
+    where
+        A: access::Read,
+    {
         let bytes = self.node.read_bytes(self.index, self.sub).await?;
         T::decode(&bytes).ok_or(Error::Length {
             node: self.node.id(),
@@ -366,10 +382,13 @@ impl<T: Wire, A: access::Read, D> Object<'_, T, A, D> {
     }
 }
 
-impl<T: Fixed, A: access::Write, D> Object<'_, T, A, D> {
+impl<T: Fixed, A, D> Object<'_, T, A, D> {
     /// Checks `v` against the EDS limits: the abort code the device would answer with
     /// (`VALUE_TOO_HIGH` 0609 0031h, `VALUE_TOO_LOW` 0609 0032h), before anything is sent.
-    pub fn check(&self, v: T::Value) -> Result<(), AbortCode> {
+    pub fn check(&self, v: T::Value) -> Result<(), AbortCode>
+    where
+        A: access::Write,
+    {
         match self.limits {
             Limits::None => Ok(()),
             Limits::Int(low, high) => T::int(v).map_or(Ok(()), |x| check_limits(x, low, high)),
@@ -382,31 +401,43 @@ impl<T: Fixed, A: access::Write, D> Object<'_, T, A, D> {
     }
 
     /// Writes the entry (an SDO download, never retried), after checking the limits.
-    pub async fn write(&self, v: T::Value) -> Result<(), Error> {
+    pub async fn write(&self, v: T::Value) -> Result<(), Error>
+    where
+        A: access::Write,
+    {
         self.check(v).map_err(|c| self.refused(c))?;
         self.node.write_bytes(self.index, self.sub, &T::encode(v)).await
     }
 
     /// Writes an entry that writing twice leaves as writing once (a parameter, a target):
     /// retried like a read.
-    pub async fn write_idempotent(&self, v: T::Value) -> Result<(), Error> {
+    pub async fn write_idempotent(&self, v: T::Value) -> Result<(), Error>
+    where
+        A: access::Write,
+    {
         self.check(v).map_err(|c| self.refused(c))?;
         self.node.write_bytes_idempotent(self.index, self.sub, &T::encode(v)).await
     }
 }
 
-impl<A: access::Write, D> Object<'_, VisibleString, A, D> {
+impl<A, D> Object<'_, VisibleString, A, D> {
     /// Writes the string's bytes.
-    pub async fn write(&self, v: &str) -> Result<(), Error> {
+    pub async fn write(&self, v: &str) -> Result<(), Error>
+    where
+        A: access::Write,
+    {
         self.node.write_bytes(self.index, self.sub, v.as_bytes()).await
     }
 }
 
 macro_rules! write_bytes {
     ($($n:ident),*) => {$(
-        impl<A: access::Write, D> Object<'_, $n, A, D> {
+        impl<A, D> Object<'_, $n, A, D> {
             /// Writes the bytes.
-            pub async fn write(&self, v: &[u8]) -> Result<(), Error> {
+            pub async fn write(&self, v: &[u8]) -> Result<(), Error>
+            where
+                A: access::Write,
+            {
                 self.node.write_bytes(self.index, self.sub, v).await
             }
         }
@@ -415,10 +446,13 @@ macro_rules! write_bytes {
 
 write_bytes!(OctetString, Domain, UnicodeString);
 
-impl<T: Fixed, A: access::Read, D: dim::Dim> Object<'_, T, A, D> {
+impl<T: Fixed, A, D: dim::Dim> Object<'_, T, A, D> {
     /// Reads the entry as a quantity in the unit `units` (the device's configuration) gives
     /// its dimension.
-    pub async fn read_in(&self, units: &dyn Scaling) -> Result<Quantity<D>, Error> {
+    pub async fn read_in(&self, units: &dyn Scaling) -> Result<Quantity<D>, Error>
+    where
+        A: access::Read,
+    {
         let v = self.read().await?;
         let raw = T::int(v).and_then(|x| i64::try_from(x).ok()).ok_or(self.unit_error(UnitError::OutOfRange))?;
         let (value, unit) = units.to_physical(D::DIMENSION, raw).map_err(|e| self.unit_error(e))?;
@@ -426,19 +460,25 @@ impl<T: Fixed, A: access::Read, D: dim::Dim> Object<'_, T, A, D> {
     }
 }
 
-impl<T: Fixed, A: access::Write, D: dim::Dim> Object<'_, T, A, D>
+impl<T: Fixed, A, D: dim::Dim> Object<'_, T, A, D>
 where
     T::Value: TryFrom<i64>,
 {
     /// The raw value of `q`, rounded to the nearest (halves away from zero).
-    pub fn raw(&self, units: &dyn Scaling, q: Quantity<D>) -> Result<T::Value, Error> {
+    pub fn raw(&self, units: &dyn Scaling, q: Quantity<D>) -> Result<T::Value, Error>
+    where
+        A: access::Write,
+    {
         let raw = units.to_raw(D::DIMENSION, q.value, q.unit).map_err(|e| self.unit_error(e))?;
         T::Value::try_from(raw).map_err(|_| self.unit_error(UnitError::OutOfRange))
     }
 
     /// Writes `q`, converted by `units` (rounded to the nearest raw value, limits checked
     /// before sending); a target, so retried like a read.
-    pub async fn write_in(&self, units: &dyn Scaling, q: Quantity<D>) -> Result<(), Error> {
+    pub async fn write_in(&self, units: &dyn Scaling, q: Quantity<D>) -> Result<(), Error>
+    where
+        A: access::Write,
+    {
         let v = self.raw(units, q)?;
         self.write_idempotent(v).await
     }

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use od_runtime::master::Mode;
 
-/// How a node's SDO transfers run: per node ([`Node::with_options`]) and per call (a node
+/// How a node's SDO transfers run: per node ([`Node::with_options`](crate::Node::with_options)) and per call (a node
 /// handle is cheap: clone one with other options for a single call).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct SdoOptions {
@@ -27,10 +27,23 @@ pub struct SdoOptions {
     /// The largest value a read accepts (default 4 KiB); a longer one aborts the transfer
     /// with "out of memory".
     pub max_len: usize,
+    /// How long a transfer waits for the bus's link to come back (a socketcand server
+    /// restarted; the bus reconnects by itself) before it fails saying the link is down
+    /// (default 10 s; 0: fail at once). A read or an idempotent write caught by the outage
+    /// starts again once the link is up; one asked for while the link is down starts then.
+    /// A plain write that was under way is not repeated: it fails saying the link is down.
+    pub link_wait: Duration,
 }
 
 impl Default for SdoOptions {
     fn default() -> Self {
-        Self { timeout: Duration::from_secs(1), retries: 2, mode: Mode::Normal, block_fallback: true, max_len: 4096 }
+        Self {
+            timeout: Duration::from_secs(1),
+            retries: 2,
+            mode: Mode::Normal,
+            block_fallback: true,
+            max_len: 4096,
+            link_wait: Duration::from_secs(10),
+        }
     }
 }

@@ -8,6 +8,7 @@
 //! drive-sim demo [--device drvi] [--plot demo.svg] [--trace demo.csv]   the main job, in process
 //! drive-sim hub --listen 127.0.0.1:29536        socketcand-compatible hub (python-can connects to it)
 //!               [--max-clients 1024] [--handshake-timeout-ms 5000] [--max-rate 20000] [--bitrate BITS_PER_S]
+//!               [--channel can0 ...]   serve only these channels (another is refused)
 //! drive-sim dump --bus socketcand://127.0.0.1:29536/can0 [--count N] [--timeout SECONDS]
 //! drive-sim send --bus socketcand://127.0.0.1:29536/can0 601#4041600000000000 000#0100 ...
 //! drive-sim slcan (--bus socketcand://127.0.0.1:29536/can0 | --device drvi --node-id 2 ...)
@@ -120,6 +121,11 @@ struct HubArgs {
     /// Log only problems (no connect/disconnect lines).
     #[arg(long, short)]
     quiet: bool,
+    /// Serve only this channel (repeat for several): a client opening another is refused, so a
+    /// misspelt channel is an error, not an empty bus. Without it any channel is served, and one
+    /// opened beside busy others is logged as a likely typo.
+    #[arg(long = "channel")]
+    channels: Vec<String>,
 }
 
 /// The hub's limits, shared by `hub` and `run --listen`.
@@ -290,10 +296,9 @@ fn main() -> ExitCode {
 fn run_hub(args: &HubArgs) -> Result<(), String> {
     // Before any thread starts, so every thread inherits the blocked signal set.
     let termination = Termination::block().map_err(|e| format!("cannot set up signal handling: {e}"))?;
-    let mut config = args.limits.apply(HubConfig { client_queue: args.queue, ..HubConfig::default() });
-    if args.quiet {
-        config = quiet_hub(config);
-    }
+    let config = HubConfig { client_queue: args.queue, channels: args.channels.clone(), ..HubConfig::default() };
+    let mut config = args.limits.apply(config);
+    config = if args.quiet { quiet_hub(config) } else { logged_hub(config) };
     let hub = Hub::bind(args.listen.as_str(), config).map_err(|e| format!("hub on {}: {e}", args.listen))?;
     let mut stdout = std::io::stdout().lock();
     // Ignored if nobody reads stdout: the line is a convenience for scripts.
@@ -444,10 +449,9 @@ fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
     let mut hub = None;
     let mut endpoints: Vec<Box<dyn Endpoint>> = Vec::new();
     let ready = if let Some(listen) = &args.listen {
-        let mut config = args.limits.apply(HubConfig::default());
-        if args.quiet {
-            config = quiet_hub(config);
-        }
+        // Its devices are on one channel: another name is a typo, refused.
+        let mut config = args.limits.apply(HubConfig { channels: vec![args.channel.clone()], ..HubConfig::default() });
+        config = if args.quiet { quiet_hub(config) } else { logged_hub(config) };
         let h = Hub::bind(listen.as_str(), config).map_err(|e| format!("hub on {listen}: {e}"))?;
         for _ in &groups {
             endpoints.push(Box::new(h.attach(&args.channel).map_err(|e| format!("channel {}: {e}", args.channel))?));
@@ -550,6 +554,15 @@ fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
     if failed.load(Ordering::SeqCst) { Err("a device stopped on a bus error".into()) } else { Ok(()) }
 }
 
+/// Every event on stderr but `listening on`, which stdout says (once).
+fn logged_hub(config: HubConfig) -> HubConfig {
+    config.with_observer(std::sync::Arc::new(|event| {
+        if !matches!(event, od_bus::HubEvent::Listening { .. }) {
+            eprintln!("hub: {event}");
+        }
+    }))
+}
+
 fn quiet_hub(config: HubConfig) -> HubConfig {
     config.with_observer(std::sync::Arc::new(|event| {
         use od_bus::HubEvent::*;
@@ -559,6 +572,7 @@ fn quiet_hub(config: HubConfig) -> HubConfig {
                 | AcceptFailed { .. }
                 | Rejected { .. }
                 | EndpointOverflow { .. }
+                | LoneChannel { .. }
                 | Evicted { .. }
                 | FramesDropped { .. }
         ) {

@@ -260,3 +260,23 @@ fn run_joins_once_for_its_devices_or_once_each_when_asked() {
         let _ = child.wait();
     }
 }
+
+/// `drive-sim hub` says where it listens once, on stdout (its log on stderr does not repeat it).
+#[test]
+fn hub_prints_its_address_once() {
+    use std::io::Read;
+    let mut hub = Command::new(env!("CARGO_BIN_EXE_drive-sim"))
+        .args(["hub", "--listen", "127.0.0.1:0"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(hub.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    assert!(line.starts_with("listening on 127.0.0.1:"), "{line:?}");
+    hub.kill().unwrap();
+    hub.wait().unwrap();
+    let mut log = String::new();
+    hub.stderr.take().unwrap().read_to_string(&mut log).unwrap();
+    assert!(!log.contains("listening"), "{log}");
+}

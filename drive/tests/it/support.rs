@@ -307,7 +307,16 @@ impl Master {
             let state = State::from_statusword(sw);
             if state != Some(want) {
                 let kind = AxisErrorKind::Timeout { what: format!("{want:?}"), timeout_ms: 2 };
-                let error = AxisError { node, state, statusword: Some(sw), index: 0x6041, sub: 0, kind };
+                let error = AxisError {
+                    node,
+                    state,
+                    statusword: Some(sw),
+                    seen: None,
+                    index: 0x6041,
+                    sub: 0,
+                    kind,
+                    register: None,
+                };
                 return Err(Error::Axis(Box::new(error)));
             }
         }
@@ -323,7 +332,9 @@ impl Master {
             return Ok(());
         }
         let kind = AxisErrorKind::Mode { wanted: mode, shown: shown as i8 };
-        Err(Error::Axis(Box::new(AxisError { node, state: None, statusword: None, index: 0x6061, sub: 0, kind })))
+        let error =
+            AxisError { node, state: None, statusword: None, seen: None, index: 0x6061, sub: 0, kind, register: None };
+        Err(Error::Axis(Box::new(error)))
     }
 
     /// Polls the statusword every `poll` µs until `statusword & mask == value`; the statusword,

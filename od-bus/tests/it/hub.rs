@@ -803,3 +803,41 @@ fn a_client_sends_several_frames_in_one_write_and_counts_what_it_holds() {
     assert_eq!(got, frames);
     assert_eq!(b.buffered(), 0);
 }
+
+/// A hub that serves named channels refuses another (a misspelt `can1`): the client's open
+/// fails saying which channels the hub serves, instead of joining an empty bus.
+#[test]
+fn a_hub_serving_named_channels_refuses_another() {
+    let config = HubConfig { channels: vec!["can0".into()], ..HubConfig::default() };
+    let (hub, _events) = recording_hub(config);
+    let err = SocketcandClient::connect(hub.local_addr(), "can1").unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "protocol error: server refused: channel can1 is not served here; this hub serves can0"
+    );
+    SocketcandClient::connect(hub.local_addr(), "can0").expect("the channel served");
+}
+
+/// A hub serving any channel reports one opened beside busy others, which nothing else is on:
+/// the likely typo, in its log.
+#[test]
+fn a_lone_channel_beside_busy_ones_is_reported() {
+    let (hub, events) = recording_hub(HubConfig::default());
+    let _device = hub.attach("can0").unwrap();
+    let _master = SocketcandClient::connect(hub.local_addr(), "can1").unwrap();
+    let _second = SocketcandClient::connect(hub.local_addr(), "can0").unwrap();
+    let lone: Vec<String> = events
+        .lock()
+        .unwrap()
+        .iter()
+        .filter(|e| matches!(e, HubEvent::LoneChannel { .. }))
+        .map(|e| e.to_string())
+        .collect();
+    assert_eq!(lone.len(), 1, "{lone:?}");
+    assert!(
+        lone[0].ends_with(
+            "opened channel can1, which nothing else is on (channels in use: can0): a misspelt channel name?"
+        ),
+        "{lone:?}"
+    );
+}

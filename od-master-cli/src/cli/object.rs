@@ -15,6 +15,34 @@ pub struct Target {
     pub name: Option<String>,
     /// The entry's data type, when an EDS gives it.
     pub data_type: Option<DataType>,
+    /// The entry's access, when an EDS gives it.
+    pub access: Option<eds::model::Access>,
+}
+
+impl Target {
+    /// Why the EDS says this entry cannot be written (read-only or constant), if it does.
+    pub fn not_writable(&self) -> Option<String> {
+        use eds::model::Access;
+        let access = self.access.filter(|a| matches!(a, Access::Ro | Access::Const))?;
+        Some(format!(
+            "{} is {} in the EDS given (AccessType {}): not written",
+            self.describe(),
+            if access == Access::Const { "constant" } else { "read-only" },
+            access.as_str()
+        ))
+    }
+
+    /// Why the EDS says this entry cannot be read (write-only), if it does.
+    pub fn not_readable(&self) -> Option<String> {
+        let access = self.access.filter(|a| *a == eds::model::Access::Wo)?;
+        Some(format!("{} is write-only in the EDS given (AccessType {}): not read", self.describe(), access.as_str()))
+    }
+
+    /// `6041h sub 0 (statusword)`.
+    fn describe(&self) -> String {
+        let name = self.name.as_deref().map(|n| format!(" ({n})")).unwrap_or_default();
+        format!("{:04X}h sub {}{name}", self.index, self.sub)
+    }
 }
 
 /// Parses `6041h`, `0x6041`, `6041` (hex) with an optional `:sub` (decimal, or hex with `h`/`0x`).
@@ -162,13 +190,14 @@ pub fn distance(a: &str, b: &str) -> usize {
 /// Resolves an object named on the command line, through `eds` when one is given.
 pub fn resolve(text: &str, eds: Option<(&Names, &Model)>) -> Result<Target, ObjectError> {
     if let Some((index, sub)) = parse_numeric(text) {
-        let data_type = eds.and_then(|(_, m)| m.entry(index, sub)).map(|e| e.data_type);
+        let entry = eds.and_then(|(_, m)| m.entry(index, sub));
         let name = eds.and_then(|(n, _)| n.name_of(index, sub)).map(str::to_owned);
-        return Ok(Target { index, sub, name, data_type });
+        return Ok(Target { index, sub, name, data_type: entry.map(|e| e.data_type), access: entry.map(|e| e.access) });
     }
     let Some((names, model)) = eds else { return Err(ObjectError::Syntax(text.to_owned())) };
     let (index, sub, name) = names.find(text)?;
-    Ok(Target { index, sub, name: Some(name), data_type: model.entry(index, sub).map(|e| e.data_type) })
+    let entry = model.entry(index, sub);
+    Ok(Target { index, sub, name: Some(name), data_type: entry.map(|e| e.data_type), access: entry.map(|e| e.access) })
 }
 
 #[cfg(test)]

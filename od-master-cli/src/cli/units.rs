@@ -69,9 +69,23 @@ pub fn to_raw(
             _ => return Err(format!("the feed converter {:04X}h could not be read", fc.object.index)),
         }
     }
-    let raw = (value * den / num).round();
+    let exact = value * den / num;
+    let raw = exact.round();
     if !(f64::from(i32::MIN)..=f64::from(i32::MAX)).contains(&raw) {
         return Err(format!("{value} {unit} is {raw} in raw units, outside INTEGER32"));
+    }
+    // Not a whole raw value (beyond the float's own noise): say so, never round silently.
+    if (exact - raw).abs() > 1e-9 * exact.abs().max(1.0) {
+        let (low, high) = (exact.floor(), exact.ceil());
+        // Six decimals: what a person typed, without the float's noise.
+        let short = |x: f64| (x * 1e6).round() / 1e6;
+        return Err(format!(
+            "{value} {unit} is {} raw units, and the drive takes whole ones: the nearest are {} {unit} ({low}) and \
+             {} {unit} ({high})",
+            short(exact),
+            short(low * num / den),
+            short(high * num / den)
+        ));
     }
     Ok(raw as i32)
 }
@@ -111,5 +125,12 @@ mod tests {
         let wrong = to_raw("1", "mm", Dimension::Position, &s, &values(0, (1, 1))).unwrap_err();
         assert!(wrong.contains("in deg"), "{wrong}");
         assert!(to_raw("1e12", "deg", Dimension::Position, &s, &values(0, (1, 1))).is_err());
+        // Not a whole raw value: refused with the nearest ones, not rounded.
+        assert_eq!(
+            to_raw("90.005", "deg", Dimension::Position, &s, &values(0, (1, 1))),
+            Err("90.005 deg is 9000.5 raw units, and the drive takes whole ones: the nearest are 90 deg (9000) and \
+                 90.01 deg (9001)"
+                .into())
+        );
     }
 }

@@ -1,11 +1,12 @@
 //! The CiA 402 axis on each simulated drive: enable, homing, profile position and velocity,
 //! cyclic synchronous position, recovery from a fault, errors that name the drive.
 
+use std::path::Path;
 use std::time::Duration;
 
 use drive::node::DeviceKind;
 use od_bus::tokio::Bus as Link;
-use od_master::{Axis, AxisErrorKind, Bus, Config, Error, Homing, Move, NodeId, State};
+use od_master::{Axis, AxisErrorKind, Bus, Config, Error, Homing, Move, NodeId, State, StatusRegister, StopReason};
 
 use crate::harness::{net, net_with, pass};
 
@@ -140,24 +141,35 @@ async fn a_lost_master_heartbeat_stops_the_drive_and_enable_recovers_it() {
     assert_eq!(axis.state().await.unwrap(), Some(State::OperationEnabled));
 }
 
-/// Errors name the drive, its state and the object: a set-point the DRVI refuses (no homing
-/// yet) is not acknowledged.
+/// Errors name the drive, the last statusword seen (its age, its state, its bits in words) and
+/// the object: a set-point the DRVI refuses (no homing yet) raises its warning bit, and the
+/// wait for the acknowledgement stops there, with 2006h read into the message.
 #[tokio::test(start_paused = true)]
 async fn an_axis_error_names_the_drive_its_state_and_the_object() {
     let n = net(&[(DeviceKind::Drvi, 2)]);
     pass(Duration::from_millis(5)).await;
-    let axis = Axis::new(n.bus.node(2).unwrap());
-    let e = axis.set_point(1_000, &Move { timeout: Duration::from_millis(200), ..Move::default() }).await.unwrap_err();
+    let sidecar = Path::new(env!("CARGO_MANIFEST_DIR")).join("../devices/camozzi-drvi.toml");
+    let register = StatusRegister::from_sidecar(&od_sidecar::Sidecar::read(&sidecar).unwrap()).unwrap();
+    let axis = Axis::new(n.bus.node(2).unwrap()).with_register(register);
+    let m = Move { velocity: Some(6_000), timeout: Duration::from_millis(200), ..Move::default() };
+    let e = axis.set_point(1_000, &m).await.unwrap_err();
     let Error::Axis(a) = &e else { panic!("{e:?}") };
-    assert_eq!((a.node, a.state, a.index, a.sub), (2, Some(State::OperationEnabled), 0x607A, 0));
-    assert!(matches!(a.kind, AxisErrorKind::SetPoint { timeout_ms: 200 }), "{e}");
+    assert_eq!((a.node, a.state, a.index, a.sub), (2, Some(State::OperationEnabled), 0x6041, 0));
+    assert!(matches!(&a.kind, AxisErrorKind::Stopped { why: StopReason::Warning, .. }), "{e}");
     let text = e.to_string();
-    assert!(text.starts_with("drive 2 (in OperationEnabled, statusword "), "{text}");
-    assert!(text.ends_with("607Ah sub 0: set-point not acknowledged (statusword bit 12) within 200 ms"), "{text}");
+    assert!(text.starts_with("drive 2 (last statusword seen "), "{text}");
+    assert!(text.contains(" ms ago: Operation enabled; warning, remote"), "{text}");
+    assert!(
+        text.ends_with(
+            "6041h sub 0: stopped waiting for set-point acknowledge: statusword bit 7 (warning) went up; the \
+             drive's register 2006h = 0100h: Homing missing"
+        ),
+        "{text}"
+    );
     // A node that does not answer: the SDO error, inside the axis error, names the object.
     let ghost = Axis::new(n.bus.node(9).unwrap().with_timeout(Duration::from_millis(50)).with_retries(0));
     let e = ghost.enable().await.unwrap_err();
-    assert!(e.to_string().contains("drive 9 (state unknown), 6041h sub 0: node 9, upload of 6041h sub 0: aborted by the client: 0x05040000 (SDO protocol timed out)"), "{e}");
+    assert!(e.to_string().contains("drive 9 (no statusword read yet), 6041h sub 0: node 9, upload of 6041h sub 0: aborted by the client: 0x05040000 (SDO protocol timed out); nothing has been received from node 9"), "{e}");
 }
 
 /// A homing the DRCS cannot run (its homing speeds are 0 out of the box) is a homing error
@@ -174,7 +186,8 @@ async fn a_homing_that_faults_is_reported_and_enable_resets_the_fault() {
     assert_eq!((a.node, a.state, a.index), (3, Some(State::FaultReactionActive), 0x6098));
     assert_eq!(
         e.to_string(),
-        "drive 3 (in FaultReactionActive, statusword 261Fh), 6098h sub 0: statusword bit 13 set: homing error"
+        "drive 3 (last statusword seen 261Fh 1 ms ago: Fault reaction active; remote, target reached, bit 13 \
+         (following error / homing error)), 6098h sub 0: statusword bit 13 set: homing error"
     );
     assert_eq!(axis.node().read::<u16>(0x603F, 0).await.unwrap(), 0x8613);
     axis.enable().await.unwrap();

@@ -188,7 +188,7 @@ async fn a_node_that_goes_silent_mid_transfer_times_out_naming_node_and_object()
     let e = node.read_bytes(0x2000, 0).await.unwrap_err();
     assert!(t0.elapsed() < Duration::from_millis(303), "{:?}", t0.elapsed());
     assert!(
-        matches!(e, Error::Sdo { attempts: 3, error } if error.error == SdoError::Client(AbortCode::TIMEOUT)),
+        matches!(e, Error::Sdo { attempts: 3, error, .. } if error.error == SdoError::Client(AbortCode::TIMEOUT)),
         "{e:?}"
     );
     assert!(e.to_string().ends_with("(after 3 attempts)"), "{e}");
@@ -241,7 +241,7 @@ async fn lost_frames_are_retried_where_allowed_and_never_give_a_wrong_value() {
         let before = log.lock().unwrap().requests.iter().filter(|r| r[0] & 0xE3 == 0x23).count();
         match node.write(0x2000, 0, k).await {
             Ok(()) => {}
-            Err(Error::Sdo { error, attempts: 1 }) if error.error == SdoError::Client(AbortCode::TIMEOUT) => {
+            Err(Error::Sdo { error, attempts: 1, .. }) if error.error == SdoError::Client(AbortCode::TIMEOUT) => {
                 failed += 1
             }
             Err(e) => panic!("{e}"),

@@ -12,7 +12,7 @@ use od_bus::tokio::LinkState;
 use od_bus::{Hub, HubConfig};
 use od_master::boot::{self, BootOptions, Network};
 use od_master::remote::{Quantity, Unit, dim};
-use od_master::{Axis, Bus, Config, Event, Homing, HomingMethod, Move};
+use od_master::{Axis, Bus, Config, Error, Event, Homing, HomingMethod, Move, SdoContext};
 
 use crate::client::{akd, drcs, drvi};
 use crate::harness::node;
@@ -160,11 +160,12 @@ async fn over_the_hub_the_example_network_boots_and_each_drive_moves_through_its
     rig.shutdown();
 }
 
-/// The hub goes away mid-session and comes back on the same port: transfers meanwhile fail
-/// with a timeout naming the node, the link reports down and up, and the next transfer
-/// succeeds with the right value.
+/// The hub goes away mid-session and comes back on the same port: a transfer meanwhile that
+/// may wait only briefly fails saying the link is down (not a bare SDO timeout); one issued
+/// during the outage with the default wait (`SdoOptions::link_wait`, 10 s) goes out once the
+/// link is back and succeeds with the right value; the link reports down and up.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn the_hub_restarted_the_bus_reconnects_and_the_next_transfer_succeeds() {
+async fn the_hub_restarted_a_read_waits_for_the_link_and_succeeds() {
     let rig = Rig::start("127.0.0.1:0", &[(DeviceKind::Drvi, 2)]);
     let addr = rig.addr();
     let bus = Bus::open(&format!("socketcand://{addr}/can0"), Config::default()).await.unwrap();
@@ -172,17 +173,24 @@ async fn the_hub_restarted_the_bus_reconnects_and_the_next_transfer_succeeds() {
     let drive = bus.node(2).unwrap().with_timeout(Duration::from_millis(200)).with_retries(0);
     let device_type = drive.read::<u32>(0x1000, 0).await.unwrap();
     rig.shutdown();
-    let e = drive.read::<u32>(0x1000, 0).await.unwrap_err();
-    assert!(e.to_string().starts_with("node 2, upload of 1000h sub 0: aborted by the client: 0x05040000"), "{e}");
+    let e = drive.clone().with_link_wait(Duration::from_millis(300)).read::<u32>(0x1000, 0).await.unwrap_err();
+    assert!(matches!(&e, Error::Sdo { context: Some(SdoContext::LinkDown { .. }), .. }), "{e:?}");
+    let text = e.to_string();
+    assert!(text.starts_with("node 2, upload of 1000h sub 0: the link to the bus is down ("), "{text}");
+    assert!(text.contains("it did not come back within SdoOptions::link_wait"), "{text}");
+
+    // Issued while the hub is gone; the hub comes back 0.5 s later.
+    let issued = std::time::Instant::now();
+    let pending = tokio::spawn({
+        let drive = drive.clone();
+        async move { drive.read::<u32>(0x1000, 0).await }
+    });
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    assert!(!pending.is_finished(), "the read waits for the link");
     let rig = Rig::start(&addr.to_string(), &[(DeviceKind::Drvi, 2)]);
-    let mut link = bus.link();
-    let up = tokio::time::timeout(
-        Duration::from_secs(10),
-        link.wait_for(|s| matches!(s, LinkState::Up { reconnects: 1.. })),
-    );
-    up.await.expect("reconnected within 10 s").unwrap();
-    let drive = drive.with_timeout(Duration::from_secs(1)).with_retries(2);
-    assert_eq!(drive.read::<u32>(0x1000, 0).await.unwrap(), device_type);
+    let value = tokio::time::timeout(Duration::from_secs(10), pending).await.expect("within the link wait");
+    assert_eq!(value.unwrap().unwrap_or_else(|e| panic!("{e}")), device_type);
+    eprintln!("a read issued during a 0.5 s hub outage succeeded {:?} after it was issued", issued.elapsed());
     let mut saw = (false, false);
     while let Ok(e) = events.try_recv() {
         match e {
@@ -211,5 +219,64 @@ fn the_blocking_facade_reads_writes_and_moves_a_drive() {
     let m = Move { velocity: Some(6_000), acceleration: Some(24_000), deceleration: Some(24_000), ..Move::default() };
     assert_eq!(axis.move_to(1_800, &m).unwrap(), 1_800);
     drop((axis, drive, bus));
+    rig.shutdown();
+}
+
+/// Over the hub, the waits of #36 that could not succeed end at once and say why: the AKD's
+/// homing with its default method 0 (6098h) fails before anything moves; its move into the
+/// positive limit switch (+2 turns) ends as statusword bit 11 goes up (0AB7h), not after 30 s;
+/// the DRVI's profile-position move with its default profile velocity 0 (6081h) fails before
+/// the set-point, where it used to be "not acknowledged" after a second.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn over_the_hub_waits_that_cannot_succeed_end_at_once_saying_why() {
+    use od_master::{AxisErrorKind, Impossible, StopReason};
+    use std::time::Instant;
+    let rig = Rig::start("127.0.0.1:0", &[(DeviceKind::Drvi, 2), (DeviceKind::Akd, 4)]);
+    let bus = Bus::open(&format!("socketcand://{}/can0", rig.addr()), Config::default()).await.unwrap();
+    let kind = |e: &Error| match e {
+        Error::Axis(a) => format!("{:?}", a.kind),
+        e => panic!("{e}"),
+    };
+    let akd = Axis::new(bus.node(4).unwrap());
+    let method = akd.node().read::<i8>(0x6098, 0).await.unwrap();
+    let t = Instant::now();
+    let e = akd.home(HomingMethod(method)).await.unwrap_err();
+    assert!(t.elapsed() < Duration::from_secs(1), "{:?}", t.elapsed());
+    assert_eq!(kind(&e), format!("{:?}", AxisErrorKind::Impossible(Impossible::NoHomingMethod)), "{e}");
+    assert!(e.to_string().contains("homing method 0 (6098h)"), "{e}");
+
+    let sidecar = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../devices/kollmorgen-akd.toml");
+    let sidecar = od_sidecar::Sidecar::read(&sidecar).unwrap();
+    bus.set_emcy_texts(4, od_master::EmcyTexts::from_sidecar(&sidecar)).await.unwrap();
+    let akd = akd.with_register(od_master::StatusRegister::from_sidecar(&sidecar).unwrap());
+    akd.node().write_idempotent(0x6092, 1, 10_000u32).await.unwrap();
+    akd.home(HomingMethod(35)).await.unwrap_or_else(|e| panic!("{e}"));
+    let m =
+        Move { velocity: Some(40_000), acceleration: Some(400_000), deceleration: Some(400_000), ..Move::default() };
+    let t = Instant::now();
+    let e = akd.move_to(100_000, &m).await.unwrap_err();
+    // 2 turns at 4 turns/s: 0.6 s to the switch, then at once.
+    assert!(t.elapsed() < Duration::from_millis(1_600), "{:?}: {e}", t.elapsed());
+    let Error::Axis(a) = &e else { panic!("{e}") };
+    // Whichever says it first: the statusword's bit 11 or the EMCY 8612h (limit switch).
+    let why = match &a.kind {
+        AxisErrorKind::Stopped { why: why @ (StopReason::InternalLimit | StopReason::Emergency { .. }), .. } => why,
+        _ => panic!("{e}"),
+    };
+    if let StopReason::Emergency { code, text } = why {
+        assert_eq!(*code, 0x8612, "{e}");
+        assert!(text.is_some(), "the sidecar's text: {e}");
+    }
+    assert!(e.to_string().contains("internal limit active"), "{e}");
+    eprintln!("AKD into its limit switch: {e}");
+
+    let drvi = Axis::new(bus.node(2).unwrap());
+    drvi.home(HomingMethod(37)).await.unwrap_or_else(|e| panic!("{e}"));
+    let t = Instant::now();
+    let e = drvi.move_to(3_600, &Move::default()).await.unwrap_err();
+    assert!(t.elapsed() < Duration::from_secs(1), "{:?}", t.elapsed());
+    assert_eq!(kind(&e), format!("{:?}", AxisErrorKind::Impossible(Impossible::NoProfileVelocity)), "{e}");
+    assert!(e.to_string().contains("profile velocity 6081h is 0"), "{e}");
+    drop(bus);
     rig.shutdown();
 }

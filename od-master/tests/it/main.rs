@@ -5,6 +5,7 @@ mod axis;
 mod boot;
 mod client;
 mod client_ui;
+mod errors;
 mod events;
 mod faults;
 mod harness;
