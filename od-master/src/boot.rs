@@ -2,7 +2,7 @@
 //! identity checked, its configuration written, its PDOs mapped, and the nodes started.
 //!
 //! The network comes from a description (`networks/*.toml`, the format `odgen dcf --network`
-//! reads; see [`od_codegen::network`]) or from one DCF per node ([`Network::load`]). For each
+//! reads; see `od_codegen::network`, with the feature `network-description`) or from one DCF per node ([`Network::load`]). For each
 //! node, [`boot`]:
 //!
 //! 1. reads 1000h (device type) and 1018h sub 1, 2 and 3 (vendor id, product code, revision
@@ -14,7 +14,7 @@
 //!    [`BootError::Identity`] naming the node, the object and both values;
 //! 2. sends NMT enter pre-operational, and writes the values that differ from the device
 //!    description's defaults, the PDOs in CiA 301's order (disable, communication parameters,
-//!    mapping, enable): [`od_codegen::network::concise`] says which and in what order;
+//!    mapping, enable): [`eds::concise`] says which and in what order;
 //! 3. once every node has been tried, starts the nodes: one NMT start to all nodes when every
 //!    node was configured, as CiA 302-2's "start all nodes" does, or else an NMT start to each
 //!    node that was configured, so that a node that failed stays pre-operational;
