@@ -613,6 +613,10 @@ pub trait ObjectDictionary {
     /// dictionary's are its EDS's. Default: [`Services::ALL`].
     const SERVICES: Services = Services::ALL;
 
+    /// Whether the device answers LSS (CiA 305; the EDS's `LSS_Supported=1`), with
+    /// od-runtime's `lss` feature. Default: no.
+    const LSS: bool = false;
+
     /// Every entry's metadata, sorted by `(index, sub)`.
     fn entries(&self) -> &'static [EntryInfo];
 

@@ -9,6 +9,8 @@ mod cia402;
 mod cia402_off;
 mod common;
 mod handles;
+#[cfg(feature = "lss")]
+mod lss;
 mod master;
 mod nmt;
 mod pdo;
