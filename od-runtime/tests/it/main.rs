@@ -11,6 +11,8 @@ mod common;
 mod handles;
 #[cfg(feature = "lss")]
 mod lss;
+#[cfg(feature = "lss")]
+mod lss_master;
 mod master;
 mod nmt;
 mod pdo;
