@@ -11,5 +11,6 @@ mod events;
 mod faults;
 mod harness;
 mod hub;
+mod lss;
 mod readme;
 mod sdo;

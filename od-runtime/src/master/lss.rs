@@ -41,6 +41,10 @@ use crate::lss::{FASTSCAN_CONFIRM, Identity, MASTER_COB, Mode, SLAVE_COB, UNCONF
 /// device, and a full fastscan of a device (about 64 unanswered steps at most) stays near 1 s.
 pub const DEFAULT_TIMEOUT: Micros = 20_000;
 
+/// The default settle time of a fastscan step answered by several devices, 2 ms (see
+/// [`LssMaster::set_settle`]).
+pub const DEFAULT_SETTLE: Micros = 2_000;
+
 /// What the master asks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Request {
@@ -274,12 +278,17 @@ struct Running {
     first: [u8; 8],
     scan: Scan,
     id: [u32; 4],
+    /// Fastscan with several devices answering: each answered step waits `settle` after its
+    /// first answer, so that the others' answers to it are not taken for the next step's.
+    settle_on: bool,
+    settling: bool,
 }
 
 /// The LSS master's machine (see the [module](self)).
 #[derive(Clone, Debug)]
 pub struct LssMaster {
     timeout: Micros,
+    settle: Micros,
     running: Option<Running>,
     frames: u32,
 }
@@ -307,7 +316,14 @@ fn fastscan_frame(id: u32, bit: u8, sub: u8, next: u8) -> [u8; 8] {
 impl LssMaster {
     /// A master with the [`DEFAULT_TIMEOUT`].
     pub const fn new() -> Self {
-        Self { timeout: DEFAULT_TIMEOUT, running: None, frames: 0 }
+        Self { timeout: DEFAULT_TIMEOUT, settle: DEFAULT_SETTLE, running: None, frames: 0 }
+    }
+
+    /// Sets the settle time (µs): with several devices in a fastscan, how long an answered
+    /// step waits after its first answer for the others' (on a real bus their identical
+    /// answers are one frame; on a hub or a bridge they are several). At most the timeout.
+    pub fn set_settle(&mut self, settle: Micros) {
+        self.settle = settle;
     }
 
     /// Sets the step timeout (µs): how long a step waits for its answer, and how long the
@@ -348,6 +364,8 @@ impl LssMaster {
             first: [0; 8],
             scan: Scan::Reset,
             id: [0; 4],
+            settle_on: false,
+            settling: false,
         };
         match request {
             Request::SwitchGlobal(m) => {
@@ -472,9 +490,18 @@ impl LssMaster {
             r.first = d;
         }
         r.answers = r.answers.saturating_add(1);
-        // The last fastscan confirmation counts its answers (duplicate identities).
-        let counting = r.count || matches!(r.scan, Scan::Confirm { part: 3, .. });
+        // The first fastscan step counts the devices without a node-ID; the last confirmation
+        // counts its answers (duplicate identities).
+        let scan = matches!(r.request, Request::Fastscan(_));
+        let counting = r.count || scan && matches!(r.scan, Scan::Confirm { part: 3, .. } | Scan::Reset);
         if counting {
+            return None;
+        }
+        if scan && r.settle_on {
+            if !r.settling {
+                r.settling = true;
+                r.deadline = Some(now.saturating_add(self.settle.min(self.timeout)));
+            }
             return None;
         }
         self.step_end(now)
@@ -541,6 +568,7 @@ impl LssMaster {
         let answers = r.answers;
         r.answers = 0;
         r.deadline = None;
+        r.settling = false;
         let start_part = |r: &mut Running, part: u8| {
             if let Some(v) = known[usize::from(part)] {
                 r.id[usize::from(part)] = v;
@@ -556,6 +584,7 @@ impl LssMaster {
                     self.running = None;
                     return Some(Done { request, result: Ok(Answer::Found(None)) });
                 }
+                r.settle_on = answers > 1;
                 start_part(r, 0);
             }
             Scan::Bit { part, bit } => {
