@@ -140,7 +140,11 @@ impl Lss {
     /// answering is [`ErrorKind::Duplicate`].
     pub async fn switch_selective(&mut self, identity: Identity) -> Result<(), Error> {
         self.device = Some(identity);
-        self.request(Request::SwitchSelective(identity)).await.map(drop)
+        let r = self.request(Request::SwitchSelective(identity)).await.map(drop);
+        if r.is_err() {
+            self.device = None;
+        }
+        r
     }
 
     /// Configure node-ID (1..=127, or [`UNCONFIGURED`]) of the device(s) in configuration.
@@ -150,9 +154,10 @@ impl Lss {
 
     /// Configure bit timing: a bit rate of the CiA 305 table, in kbit/s.
     pub async fn configure_bit_rate(&mut self, kbit: u32) -> Result<(), Error> {
-        // A rate outside the table is refused by the core without sending (index 5 is
-        // reserved, so it stands for "none").
-        let index = bit_rate_index(kbit).unwrap_or(5);
+        let Some(index) = bit_rate_index(kbit) else {
+            // Refused without sending.
+            return Err(Error::Lss { error: LssError { step: Step::BitRate(kbit), kind: ErrorKind::Invalid }, device: None });
+        };
         self.request(Request::ConfigureBitTiming(index)).await.map(drop)
     }
 
@@ -254,9 +259,11 @@ impl Lss {
     /// Gives the device of `identity` the node-ID `node_id` (switch selective, configure,
     /// store when `store`, back to waiting). A device without a node-ID starts with it at
     /// once; one with a node-ID at its next reset.
+    /// Whatever fails, every device is back in waiting at the end (two devices of one
+    /// identity are both in configuration after the switch).
     pub async fn set_node_id(&mut self, identity: Identity, node_id: u8, store: bool) -> Result<(), Error> {
-        self.switch_selective(identity).await?;
         let r = async {
+            self.switch_selective(identity).await?;
             self.configure_node_id(node_id).await?;
             if store {
                 self.store().await?;

@@ -86,6 +86,8 @@ async fn three_drives_without_node_id_are_found_assigned_and_boot_after_a_power_
         assert!(frames.try_recv().is_err(), "no boot-up from a drive without a node-ID");
 
         let mut session = Lss::new(&n.bus);
+        // Answers come within a simulation step (200 µs): a short step timeout keeps the test cheap.
+        session.set_timeout(Duration::from_millis(5));
         let mut found = session.scan([None; 4]).await.unwrap();
         found.sort_by_key(|id| id.serial);
         let want: Vec<Identity> = plan.iter().map(|p| p.0).collect();
@@ -118,6 +120,7 @@ async fn three_drives_all_at_node_1_unconfigure_all_then_assign() {
     pass(Duration::from_millis(20)).await;
     assert_eq!(active_ids(&n), [Some(1), Some(1), Some(1)]);
     let mut session = Lss::new(&n.bus);
+    session.set_timeout(Duration::from_millis(5));
     // All at node 1: fastscan sees none of them.
     assert_eq!(session.scan([None; 4]).await.unwrap(), []);
     session.unconfigure_all().await.unwrap();
@@ -140,6 +143,7 @@ async fn unknown_devices_are_listed_missing_ones_reported() {
     let n = net(vec![drive(DeviceKind::Drvi, 255, 1001, &dir), drive(DeviceKind::Drcs, 255, 77, &dir)]);
     pass(Duration::from_millis(20)).await;
     let mut session = Lss::new(&n.bus);
+    session.set_timeout(Duration::from_millis(5));
     let report = session.assign(&lss::plan(&network)).await.unwrap();
     assert_eq!(report.assigned.iter().map(|a| (a.0.serial, a.1)).collect::<Vec<_>>(), [(1001, 2)]);
     assert_eq!(report.unknown.iter().map(|i| i.serial).collect::<Vec<_>>(), [77]);
@@ -179,7 +183,7 @@ async fn duplicate_identity_absent_device_and_bad_bit_rate_are_clear_errors() {
     let e = session.configure_bit_rate(100).await.unwrap_err();
     assert_eq!(
         e.to_string(),
-        "LSS configure bit timing index 5: not a bit rate of the CiA 305 table (1000, 800, 500, 250, 125, 50, 20, 10 kbit/s)"
+        "LSS configure bit timing 100 kbit/s: not a bit rate of the CiA 305 table (1000, 800, 500, 250, 125, 50, 20, 10 kbit/s)"
     );
     assert_eq!(session.frames_sent(), before, "refused before sending");
     // Nobody in configuration: configure node-ID times out, naming the step.

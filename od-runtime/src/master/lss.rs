@@ -108,6 +108,8 @@ pub enum Step {
     ConfigureNodeId(u8),
     /// Configure bit timing (table index).
     ConfigureBitTiming(u8),
+    /// Configure bit timing, asked as a bit rate in kbit/s (one the table may not have).
+    BitRate(u32),
     /// Store configuration.
     Store,
     /// Inquire identity part (0..=3).
@@ -171,6 +173,7 @@ impl core::fmt::Display for Step {
                 Some(k) => write!(f, "configure bit timing {k} kbit/s (index {i})"),
                 None => write!(f, "configure bit timing index {i}"),
             },
+            Step::BitRate(k) => write!(f, "configure bit timing {k} kbit/s"),
             Step::Store => f.write_str("store configuration"),
             Step::InquireIdentity(p) => write!(f, "inquire {}", part_name(*p)),
             Step::InquireNodeId => f.write_str("inquire node-ID"),
@@ -221,7 +224,7 @@ impl core::fmt::Display for LssError {
             ErrorKind::Duplicate(n) => write!(f, "{n} devices answered: two devices have this identity"),
             ErrorKind::Invalid => match self.step {
                 Step::ConfigureNodeId(_) => f.write_str("not a node-ID (1..=127, or 255 for none)"),
-                Step::ConfigureBitTiming(_) => {
+                Step::ConfigureBitTiming(_) | Step::BitRate(_) => {
                     f.write_str("not a bit rate of the CiA 305 table (1000, 800, 500, 250, 125, 50, 20, 10 kbit/s)")
                 }
                 _ => f.write_str("invalid request"),
