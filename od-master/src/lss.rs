@@ -36,7 +36,19 @@ pub struct Lss {
     core: LssMaster,
     origin: Instant,
     device: Option<Identity>,
+    /// Whether an answer came yet in this session (see [`FIRST_ANSWER`]).
+    answered: bool,
+    retries: u32,
 }
+
+/// How many times [`Lss::fastscan`] runs a scan whose confirmation got no answer.
+pub const FASTSCAN_ATTEMPTS: u32 = 3;
+
+/// How long the steps of a session wait at least until its first answer: a bus just opened
+/// over `drive-sim hub` delivers its first answers 30 to 60 ms late (measured: an SDO read or
+/// an LSS inquiry right after the handshake needs a timeout over 45 ms, the same one 30 ms
+/// later answers in under 1 ms).
+pub const FIRST_ANSWER: Duration = Duration::from_millis(100);
 
 /// What [`Lss::assign`] did.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -52,7 +64,15 @@ pub struct Assignment {
 impl Lss {
     /// A session on `bus`, with the default step timeout ([`DEFAULT_TIMEOUT`]).
     pub fn new(bus: &Bus) -> Self {
-        Self { bus: bus.clone(), frames: bus.frames(), core: LssMaster::new(), origin: Instant::now(), device: None }
+        Self {
+            bus: bus.clone(),
+            frames: bus.frames(),
+            core: LssMaster::new(),
+            origin: Instant::now(),
+            device: None,
+            answered: false,
+            retries: 0,
+        }
     }
 
     /// Sets the step timeout: how long each step waits for its answer (and the steps that
@@ -84,6 +104,17 @@ impl Lss {
                 Err(_) => break,
             }
         }
+        let step = self.core.timeout();
+        if !self.answered {
+            self.core.set_timeout(step.max(FIRST_ANSWER.as_micros() as u64));
+        }
+        let r = self.run_request(request, step).await;
+        self.core.set_timeout(step);
+        r
+    }
+
+    /// Runs `request`; `step` is the step timeout once an answer came.
+    async fn run_request(&mut self, request: Request, step: u64) -> Result<Answer, Error> {
         let now = self.now();
         self.core.start(request, now).map_err(|_| Error::Closed)?;
         loop {
@@ -107,6 +138,11 @@ impl Lss {
             };
             match frame {
                 Some(Ok(f)) => {
+                    if !self.answered && f.id() == u32::from(od_runtime::lss::SLAVE_COB) {
+                        // The link delivers: the next steps wait the step timeout.
+                        self.answered = true;
+                        self.core.set_timeout(step);
+                    }
                     if let Ok(f) = od_runtime::Frame::try_from(f)
                         && let Some(d) = self.core.on_frame(&f, self.now())
                     {
@@ -224,14 +260,38 @@ impl Lss {
     /// Fastscan: one device without a node-ID, left in configuration (`None`: there is
     /// none). The parts given in `known` (vendor, product, revision, serial) are confirmed,
     /// not scanned.
+    ///
+    /// A confirmation that gets no answer starts the scan again, up to [`FASTSCAN_ATTEMPTS`]
+    /// times in all: an answer later than the step timeout (a loaded host, a busy bridge) is
+    /// taken for the next step's and makes a wrong bit, which the confirmation finds. A
+    /// device that is gone fails every attempt, and the error names the step.
     pub async fn fastscan(&mut self, known: [Option<u32>; 4]) -> Result<Option<Identity>, Error> {
-        match self.request(Request::Fastscan(known)).await? {
-            Answer::Found(found) => {
-                self.device = found;
-                Ok(found)
+        let mut attempt = 1;
+        loop {
+            match self.request(Request::Fastscan(known)).await {
+                Ok(Answer::Found(found)) => {
+                    self.device = found;
+                    return Ok(found);
+                }
+                Ok(_) => return Ok(None),
+                Err(Error::Lss { error, .. })
+                    if attempt < FASTSCAN_ATTEMPTS
+                        && matches!(error.step, Step::FastscanConfirm { .. })
+                        && matches!(error.kind, ErrorKind::Timeout(_)) =>
+                {
+                    attempt += 1;
+                    self.retries += 1;
+                    // Late answers of the failed scan go by before the next one starts.
+                    tokio::time::sleep(self.timeout()).await;
+                }
+                Err(e) => return Err(e),
             }
-            _ => Ok(None),
         }
+    }
+
+    /// Fastscans started again after a confirmation got no answer (see [`Lss::fastscan`]).
+    pub fn retries(&self) -> u32 {
+        self.retries
     }
 
     /// Every device without a node-ID, by fastscan after fastscan (each found one waits in
