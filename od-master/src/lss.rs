@@ -353,12 +353,53 @@ impl Lss {
     }
 
     /// Gives each device of `plan` (its identity: the EDS's vendor, product and revision
-    /// and the description's serial number) its node-ID, stored, by switch state selective;
-    /// a device that does not answer is listed as missing. Then lists, by fastscan, the
-    /// devices still without a node-ID, which the plan does not name (left as they were).
+    /// and the description's serial number) its node-ID, stored.
+    ///
+    /// First by fastscan: each device without a node-ID that the scan finds is the only one in
+    /// configuration, so a device of the plan gets its node-ID there and then (no switch
+    /// selective); a device the plan does not name is listed in
+    /// [`Assignment::unknown`] and left as it was. The scan matches vendor, product and
+    /// revision instead of scanning them when every device of the plan has the same ones.
+    /// Then the devices of the plan the scan did not give a node-ID (those that have one
+    /// already) by switch state selective; one that does not answer is listed as missing.
     pub async fn assign(&mut self, plan: &[(Identity, u8)]) -> Result<Assignment, Error> {
         let mut report = Assignment::default();
+        let same = |f: fn(&Identity) -> u32| {
+            let first = plan.first().map(|p| f(&p.0));
+            first.filter(|v| plan.iter().all(|p| f(&p.0) == *v))
+        };
+        let known = [same(|i| i.vendor), same(|i| i.product), same(|i| i.revision), None];
+        // An unknown device found waits in configuration: the devices found after it get their
+        // node-ID by switch state selective, after the scan.
+        let mut parked = false;
+        let scanned = async {
+            for _ in 0..127 {
+                let Some(id) = self.fastscan(known).await? else { break };
+                match plan.iter().find(|p| p.0 == id) {
+                    Some(&(_, node)) if !parked => {
+                        self.configure_node_id(node).await?;
+                        self.store().await?;
+                        // Back to waiting: it starts with its node-ID.
+                        self.switch_global(Mode::Waiting).await?;
+                        report.assigned.push((id, node));
+                    }
+                    Some(_) => {}
+                    None => {
+                        report.unknown.push(id);
+                        parked = true;
+                    }
+                }
+            }
+            Ok::<_, Error>(())
+        }
+        .await;
+        let back = self.switch_global(Mode::Waiting).await;
+        scanned?;
+        back?;
         for &(id, node) in plan {
+            if report.assigned.iter().any(|a| a.0 == id) {
+                continue;
+            }
             match self.set_node_id(id, node, true).await {
                 Ok(()) => report.assigned.push((id, node)),
                 Err(Error::Lss { error, .. })
@@ -369,7 +410,8 @@ impl Lss {
                 Err(e) => return Err(e),
             }
         }
-        report.unknown = self.scan([None; 4]).await?;
+        // In the order of the plan.
+        report.assigned.sort_by_key(|a| plan.iter().position(|p| p.0 == a.0));
         Ok(report)
     }
 }

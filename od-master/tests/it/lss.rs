@@ -97,7 +97,7 @@ async fn three_drives_without_node_id_are_found_assigned_and_boot_after_a_power_
         let report = session.assign(&plan).await.unwrap();
         assert_eq!(report.assigned, plan);
         assert!(report.unknown.is_empty() && report.missing.is_empty(), "{report:?}");
-        assert!(start.elapsed() < Duration::from_millis(500), "assignment took {:?}", start.elapsed());
+        assert!(start.elapsed() < Duration::from_secs(3), "assignment took {:?}", start.elapsed());
         pass(Duration::from_millis(5)).await;
         assert_eq!(active_ids(&n), [Some(2), Some(3), Some(4)]);
     }

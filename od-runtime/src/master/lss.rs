@@ -7,10 +7,12 @@
 //! next. Each request ends in one [`Done`]: its [`Answer`] or an [`LssError`] that names the
 //! step (and the identity, where the step has one).
 //!
-//! Requests that may be answered by several devices (switch state selective, identify, the
-//! last confirmation of a fastscan) wait for the whole step timeout and count the answers:
-//! two answers to one identity are [`ErrorKind::Duplicate`]. Every other step ends at its
-//! answer.
+//! Requests that may be answered by several devices (switch state selective, identify) wait
+//! for the whole step timeout and count the answers: two answers to one identity are
+//! [`ErrorKind::Duplicate`]. A fastscan counts the answers to its first step and to its last
+//! confirmation for the settle time after the first ([`LssMaster::set_settle`]: devices
+//! answer one request at the same time); with several devices every answered step does.
+//! Every other step ends at its answer.
 //!
 //! ```
 //! use od_runtime::lss::Identity;
@@ -493,14 +495,15 @@ impl LssMaster {
             r.first = d;
         }
         r.answers = r.answers.saturating_add(1);
-        // The first fastscan step counts the devices without a node-ID; the last confirmation
-        // counts its answers (duplicate identities).
-        let scan = matches!(r.request, Request::Fastscan(_));
-        let counting = r.count || scan && matches!(r.scan, Scan::Confirm { part: 3, .. } | Scan::Reset);
-        if counting {
+        if r.count {
             return None;
         }
-        if scan && r.settle_on {
+        // Fastscan: the first step counts the devices without a node-ID, the last
+        // confirmation its answers (duplicate identities), and with several devices every
+        // answered step lets the others' answers go by: each waits the settle time after its
+        // first answer, counting.
+        let scan = matches!(r.request, Request::Fastscan(_));
+        if scan && (r.settle_on || matches!(r.scan, Scan::Confirm { part: 3, .. } | Scan::Reset)) {
             if !r.settling {
                 r.settling = true;
                 r.deadline = Some(now.saturating_add(self.settle.min(self.timeout)));
