@@ -1,6 +1,8 @@
-//! `od-master lss` end to end: three simulated drives without a node-ID on a hub over TCP
-//! (each with its own serial number), given nodes 2, 3 and 4 by `lss assign` from
-//! networks/example.toml with serials, then booted; inquire, errors.
+//! `od-master lss` end to end: three simulated drives that all start as node 1 on a hub over
+//! TCP (each with its own serial number), given nodes 2, 3 and 4 by `lss assign` from
+//! networks/example.toml with serials (by switch state selective: fastscan sees no device
+//! with a node-ID), reset, then booted; inquire, errors. Fastscan itself is tested in virtual
+//! time (od-master's tests/it/lss.rs) and against python-canopen (tests/python/test_lss.py).
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -32,7 +34,7 @@ impl Rig {
             .iter()
             .map(|&(kind, serial)| {
                 let config =
-                    NodeConfig { node_id: Some(255), serial: Some(serial), state_dir: Some(dir.clone()), ..Default::default() };
+                    NodeConfig { node_id: Some(1), serial: Some(serial), state_dir: Some(dir.clone()), ..Default::default() };
                 let mut n = kind.build(&config, &drive::drives::DeviceApps::new()).expect("a simulated drive");
                 let mut ep = hub.attach("can0").unwrap();
                 let stop = Arc::clone(&stop);
@@ -87,8 +89,7 @@ fn lss_assign_inquire_then_boot() {
     let rig = Rig::start("assign");
     let network = rig.network();
     // A long step timeout: the test host may be loaded (answers over the hub took up to 160 ms
-    // at a load average of 19 on 2 cores). Fastscan itself is tested in virtual time
-    // (od-master's tests/it/lss.rs); assign selects each drive by its identity.
+    // at a load average of 19 on 2 cores).
     let out = rig.cli(&["lss", "--step-timeout", "300", "assign", network.to_str().unwrap()]);
     assert_eq!(out.code, 0, "{}", out.stderr);
     let lines: Vec<&str> = out.stdout.lines().collect();
@@ -97,6 +98,9 @@ fn lss_assign_inquire_then_boot() {
         assert!(line.starts_with(node), "{}", out.stdout);
     }
 
+    // The new node-IDs take effect at the next reset.
+    assert_eq!(rig.cli(&["nmt", "reset", "all"]).code, 0);
+    std::thread::sleep(std::time::Duration::from_millis(300));
     let out = rig.cli(&["--eds", DRVI_EDS, "--json", "lss", "--step-timeout", "300", "inquire", "--serial", "1001"]);
     assert_eq!(out.code, 0, "{}", out.stderr);
     let [v] = &out.json_lines()[..] else { panic!("{}", out.stdout) };
