@@ -98,12 +98,7 @@ impl Lss {
     /// Runs one request to its end.
     async fn request(&mut self, request: Request) -> Result<Answer, Error> {
         // Frames from before the request are not its answers.
-        loop {
-            match self.frames.try_recv() {
-                Ok(_) | Err(broadcast::error::TryRecvError::Lagged(_)) => {}
-                Err(_) => break,
-            }
-        }
+        while let Ok(_) | Err(broadcast::error::TryRecvError::Lagged(_)) = self.frames.try_recv() {}
         let step = self.core.timeout();
         if !self.answered {
             self.core.set_timeout(step.max(FIRST_ANSWER.as_micros() as u64));
@@ -192,7 +187,10 @@ impl Lss {
     pub async fn configure_bit_rate(&mut self, kbit: u32) -> Result<(), Error> {
         let Some(index) = bit_rate_index(kbit) else {
             // Refused without sending.
-            return Err(Error::Lss { error: LssError { step: Step::BitRate(kbit), kind: ErrorKind::Invalid }, device: None });
+            return Err(Error::Lss {
+                error: LssError { step: Step::BitRate(kbit), kind: ErrorKind::Invalid },
+                device: None,
+            });
         };
         self.request(Request::ConfigureBitTiming(index)).await.map(drop)
     }
@@ -403,7 +401,8 @@ impl Lss {
             match self.set_node_id(id, node, true).await {
                 Ok(()) => report.assigned.push((id, node)),
                 Err(Error::Lss { error, .. })
-                    if matches!(error.step, Step::SwitchSelective(_)) && matches!(error.kind, ErrorKind::Timeout(_)) =>
+                    if matches!(error.step, Step::SwitchSelective(_))
+                        && matches!(error.kind, ErrorKind::Timeout(_)) =>
                 {
                     report.missing.push((id, node));
                 }
@@ -426,7 +425,10 @@ pub fn plan(network: &crate::Network) -> Vec<(Identity, u8)> {
         .filter_map(|n| {
             let id = &n.plan.identity;
             let serial = n.serial?;
-            Some((Identity { vendor: id.vendor_id, product: id.product_code, revision: id.revision, serial }, n.node_id))
+            Some((
+                Identity { vendor: id.vendor_id, product: id.product_code, revision: id.revision, serial },
+                n.node_id,
+            ))
         })
         .collect()
 }

@@ -330,7 +330,7 @@ impl LssSlave {
         let config = self.mode == Mode::Configuration;
         match d[0] {
             cs::SWITCH_GLOBAL => match d[1] {
-                0 => return self.to_waiting(),
+                0 => return self.enter_waiting(),
                 1 => {
                     self.mode = Mode::Configuration;
                     self.selective = Sequence::START;
@@ -357,8 +357,7 @@ impl LssSlave {
                 if ok {
                     self.pending_bit_rate = Some(d[2]);
                 }
-                self.reply =
-                    Some(answer(cs::CONFIGURE_BIT_TIMING, &[if ok { error::OK } else { error::UNSUPPORTED }]));
+                self.reply = Some(answer(cs::CONFIGURE_BIT_TIMING, &[if ok { error::OK } else { error::UNSUPPORTED }]));
             }
             cs::ACTIVATE_BIT_TIMING if config => {
                 if let Some(index) = self.pending_bit_rate {
@@ -394,10 +393,8 @@ impl LssSlave {
                     self.reply = Some(answer(cs::IDENTIFY_RESPONSE, &[]));
                 }
             }
-            cs::IDENTIFY_NON_CONFIGURED => {
-                if self.pending == UNCONFIGURED && self.active == UNCONFIGURED {
-                    self.reply = Some(answer(cs::NON_CONFIGURED_RESPONSE, &[]));
-                }
+            cs::IDENTIFY_NON_CONFIGURED if self.pending == UNCONFIGURED && self.active == UNCONFIGURED => {
+                self.reply = Some(answer(cs::NON_CONFIGURED_RESPONSE, &[]));
             }
             cs::FASTSCAN => self.fastscan(value, d[5], d[6], d[7], identity),
             _ => {}
@@ -406,7 +403,7 @@ impl LssSlave {
     }
 
     /// Switch state global waiting: a device without a node-ID that got one starts with it.
-    fn to_waiting(&mut self) -> LssAction {
+    fn enter_waiting(&mut self) -> LssAction {
         let was = self.mode;
         self.mode = Mode::Waiting;
         self.selective = Sequence::START;

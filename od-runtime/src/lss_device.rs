@@ -3,11 +3,11 @@
 //! device's [`Storage`].
 
 use super::{Core, Device, Event, ResetKind, STORE, read_or};
+use crate::App;
 use crate::frame::{Frame, NodeId};
 use crate::lss::{self, Identity, LssAction, LssConfig, LssSlave, UNCONFIGURED};
 use crate::od::{AbortCode, ObjectDictionary};
 use crate::storage::Storage;
-use crate::App;
 
 impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usize> Core<OD, A, S, P, M> {
     /// At the first start: the stored node-ID and bit rate replace the ones the device was

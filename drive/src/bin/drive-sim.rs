@@ -437,7 +437,9 @@ fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
         let name = match (node.active_node_id(), g.config.serial) {
             (Some(id), None) => format!("{} node {}", g.kind, id.get()),
             (Some(id), Some(sn)) => format!("{} node {} (serial {sn})", g.kind, id.get()),
-            (None, sn) => format!("{} without node id (serial {})", g.kind, sn.map_or("of its EDS".into(), |s| s.to_string())),
+            (None, sn) => {
+                format!("{} without node id (serial {})", g.kind, sn.map_or("of its EDS".into(), |s| s.to_string()))
+            }
         };
         // Devices with their own serial numbers may share a node id: LSS sets them apart.
         if g.config.serial.is_none()

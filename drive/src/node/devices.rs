@@ -75,7 +75,8 @@ impl DeviceKind {
         let raw = config.node_id.or(params.node_id()).ok_or(NodeSetupError::NoNodeId)?;
         // 255: no node-ID (LSS); the dictionary's $NODEID values wait for the one LSS gives.
         let unconfigured = raw == od_runtime::lss::UNCONFIGURED;
-        let id = if unconfigured { NodeId::new(127) } else { NodeId::new(raw) }.ok_or(NodeSetupError::BadNodeId(raw))?;
+        let id =
+            if unconfigured { NodeId::new(127) } else { NodeId::new(raw) }.ok_or(NodeSetupError::BadNodeId(raw))?;
         // A device known by its serial number keeps its files under it: its node-ID may change.
         let tag = match config.serial {
             Some(serial) => format!("{}-sn{serial}", self.name()),

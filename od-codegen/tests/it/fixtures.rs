@@ -247,7 +247,8 @@ fn lss_supported_gives_the_dictionary_lss() {
     let text = String::from_utf8(bytes).unwrap();
     for (value, want) in [("1", true), ("0", false)] {
         let edited = if text.contains("LSS_Supported=") {
-            text.replace("LSS_Supported=0", &format!("LSS_Supported={value}")).replace("LSS_Supported=1", &format!("LSS_Supported={value}"))
+            text.replace("LSS_Supported=0", &format!("LSS_Supported={value}"))
+                .replace("LSS_Supported=1", &format!("LSS_Supported={value}"))
         } else {
             text.replacen("[DeviceInfo]", &format!("[DeviceInfo]\nLSS_Supported={value}"), 1)
         };

@@ -140,7 +140,9 @@ pub async fn run(bus: &Bus, args: LssArgs, eds: Option<&eds::Model>, json: bool)
     match args.action {
         LssCmd::Scan => {
             let known = match eds {
-                Some(m) => [m.device_info.vendor_number, m.device_info.product_number, m.device_info.revision_number, None],
+                Some(m) => {
+                    [m.device_info.vendor_number, m.device_info.product_number, m.device_info.revision_number, None]
+                }
                 None => [None; 4],
             };
             let found = session.scan(known).await.map_err(failed)?;
@@ -153,7 +155,10 @@ pub async fn run(bus: &Bus, args: LssArgs, eds: Option<&eds::Model>, json: bool)
             }
             if !json {
                 let (frames, retries) = (session.frames_sent(), session.retries());
-                println!("{} device(s) without a node-ID ({frames} LSS frames sent, {retries} scans repeated)", found.len());
+                println!(
+                    "{} device(s) without a node-ID ({frames} LSS frames sent, {retries} scans repeated)",
+                    found.len()
+                );
             }
         }
         LssCmd::SetId { id, new, no_store } => {
@@ -184,7 +189,10 @@ pub async fn run(bus: &Bus, args: LssArgs, eds: Option<&eds::Model>, json: bool)
             if let Some(delay) = activate {
                 session.activate_bit_timing(Duration::from_millis(u64::from(delay))).await.map_err(failed)?;
             }
-            println!("bit rate {kbit} kbit/s configured and stored{}", if activate.is_some() { ", activated" } else { "" });
+            println!(
+                "bit rate {kbit} kbit/s configured and stored{}",
+                if activate.is_some() { ", activated" } else { "" }
+            );
         }
         LssCmd::Store { id } => {
             let ident = identity(&id, eds)?;

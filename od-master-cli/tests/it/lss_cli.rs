@@ -33,8 +33,12 @@ impl Rig {
         let threads = DRIVES
             .iter()
             .map(|&(kind, serial)| {
-                let config =
-                    NodeConfig { node_id: Some(1), serial: Some(serial), state_dir: Some(dir.clone()), ..Default::default() };
+                let config = NodeConfig {
+                    node_id: Some(1),
+                    serial: Some(serial),
+                    state_dir: Some(dir.clone()),
+                    ..Default::default()
+                };
                 let mut n = kind.build(&config, &drive::drives::DeviceApps::new()).expect("a simulated drive");
                 let mut ep = hub.attach("can0").unwrap();
                 let stop = Arc::clone(&stop);
@@ -113,7 +117,11 @@ fn lss_assign_inquire_then_boot() {
     // known; each one line and its exit code.
     let out = rig.cli(&["lss", "set-bitrate", "100"]);
     assert_eq!(out.code, 1);
-    assert!(out.stderr.contains("LSS configure bit timing 100 kbit/s: not a bit rate of the CiA 305 table"), "{}", out.stderr);
+    assert!(
+        out.stderr.contains("LSS configure bit timing 100 kbit/s: not a bit rate of the CiA 305 table"),
+        "{}",
+        out.stderr
+    );
     let out = rig.cli(&["--eds", DRVI_EDS, "lss", "set-id", "--serial", "5", "9"]);
     assert_eq!(out.code, 1);
     assert!(out.stderr.contains("serial 00000005h): no answer within "), "{}", out.stderr);

@@ -40,7 +40,8 @@ fn example_with_serials() -> Network {
             out.push_str(&format!("serial = {}\n", serials.next().unwrap()));
         }
     }
-    Network::from_description_text("example-lss.toml", &repo().join("networks"), &out).expect("the example with serials")
+    Network::from_description_text("example-lss.toml", &repo().join("networks"), &out)
+        .expect("the example with serials")
 }
 
 fn drive(kind: DeviceKind, node_id: u8, serial: u32, dir: &Path) -> Box<dyn AnyNode> {

@@ -205,11 +205,9 @@ impl core::fmt::Display for LssError {
             ErrorKind::Timeout(t) => {
                 write!(f, "no answer within {} ms", t / 1000)?;
                 match self.step {
-                    Step::FastscanConfirm { known: true, part, .. } => write!(
-                        f,
-                        " (no device without a node-ID has this {}: check the EDS given)",
-                        part_name(part)
-                    )?,
+                    Step::FastscanConfirm { known: true, part, .. } => {
+                        write!(f, " (no device without a node-ID has this {}: check the EDS given)", part_name(part))?
+                    }
                     Step::FastscanConfirm { .. } => f.write_str(" (the device stopped answering during the scan)")?,
                     _ => {}
                 }
@@ -551,9 +549,10 @@ impl LssMaster {
                     fail(step, ErrorKind::Timeout(timeout))
                 } else {
                     match request {
-                        Request::InquireIdentity(_) => {
-                            Some(Done { request, result: Ok(Answer::Value(u32::from_le_bytes([d[1], d[2], d[3], d[4]]))) })
-                        }
+                        Request::InquireIdentity(_) => Some(Done {
+                            request,
+                            result: Ok(Answer::Value(u32::from_le_bytes([d[1], d[2], d[3], d[4]]))),
+                        }),
                         Request::InquireNodeId => Some(Done { request, result: Ok(Answer::NodeId(d[1])) }),
                         _ if d[1] != 0 => fail(step, ErrorKind::Refused { code: d[1], specific: d[2] }),
                         _ => Some(Done { request, result: Ok(Answer::Done) }),
@@ -611,14 +610,20 @@ impl LssMaster {
                         let known = known[p].is_some();
                         let step = Step::FastscanConfirm { part, value: r.id[p], so_far, known };
                         self.running = None;
-                        return Some(Done { request, result: Err(LssError { step, kind: ErrorKind::Timeout(timeout) }) });
+                        return Some(Done {
+                            request,
+                            result: Err(LssError { step, kind: ErrorKind::Timeout(timeout) }),
+                        });
                     }
                 } else if part == 3 {
                     let found = Identity { vendor: r.id[0], product: r.id[1], revision: r.id[2], serial: r.id[3] };
                     self.running = None;
                     if answers > 1 {
                         let step = Step::FastscanConfirm { part, value: found.serial, so_far: found, known: false };
-                        return Some(Done { request, result: Err(LssError { step, kind: ErrorKind::Duplicate(answers) }) });
+                        return Some(Done {
+                            request,
+                            result: Err(LssError { step, kind: ErrorKind::Duplicate(answers) }),
+                        });
                     }
                     return Some(Done { request, result: Ok(Answer::Found(Some(found))) });
                 } else {

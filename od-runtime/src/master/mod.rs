@@ -109,8 +109,8 @@ pub mod sdo_client;
 pub mod sync;
 
 pub use emcy::Emergency;
-pub use lss::LssMaster;
 pub use heartbeat::{HeartbeatProducer, NodeEvent, NodeMonitor, Watch};
+pub use lss::LssMaster;
 pub use pdo::{PdoError, PdoField, PdoMapping, PdoValue};
 pub use sdo_client::{Direction, Done, Mode, Reject, Rejected, SdoClient, SdoError, TransferError};
 pub use sync::SyncProducer;

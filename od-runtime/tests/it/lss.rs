@@ -200,7 +200,9 @@ fn identify_remote_slave_by_ranges() {
     h.poll();
     let ask = |h: &mut Harness, rev: (u32, u32), serial: (u32, u32)| {
         let mut out = Vec::new();
-        for (cs, v) in [(0x46u8, 0xABC), (0x47, 0x402), (0x48, rev.0), (0x49, rev.1), (0x4A, serial.0), (0x4B, serial.1)] {
+        for (cs, v) in
+            [(0x46u8, 0xABC), (0x47, 0x402), (0x48, rev.0), (0x49, rev.1), (0x4A, serial.0), (0x4B, serial.1)]
+        {
             let b: [u8; 4] = u32::to_le_bytes(v);
             out.extend(h.send(&format!("7E5 {cs:02X} {} 00 00 00", hex(&b))));
         }

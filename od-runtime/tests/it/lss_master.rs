@@ -61,8 +61,7 @@ fn frames_of_every_request() {
     for (req, frames, reply) in cases {
         // The answer comes to the last frame of the request.
         let last = frames[frames.len() - 1];
-        let (sent, done) =
-            run(req, |f| if f == last && !reply.is_empty() { vec![reply.to_owned()] } else { vec![] });
+        let (sent, done) = run(req, |f| if f == last && !reply.is_empty() { vec![reply.to_owned()] } else { vec![] });
         assert_eq!(sent, frames, "{req:?}");
         let want = match req {
             Request::InquireNodeId => Answer::NodeId(9),
@@ -79,10 +78,8 @@ fn frames_of_every_request() {
         assert_eq!(sent, [format!("7E5 {:02X} 00 00 00 00 00 00 00", 0x5A + p)]);
         assert_eq!(done.result, Ok(Answer::Value(0x1234_5678)));
     }
-    let (sent, _) = run(
-        Request::IdentifyRemote { vendor: 1, product: 2, revision: (3, 4), serial: (5, 0xFFFF_FFFF) },
-        |_| vec![],
-    );
+    let (sent, _) =
+        run(Request::IdentifyRemote { vendor: 1, product: 2, revision: (3, 4), serial: (5, 0xFFFF_FFFF) }, |_| vec![]);
     assert_eq!(
         sent,
         [
