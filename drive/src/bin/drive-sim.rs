@@ -226,10 +226,8 @@ fn parse_node_id(s: &str) -> Result<u8, String> {
     if s.eq_ignore_ascii_case("none") {
         return Ok(od_runtime::lss::UNCONFIGURED);
     }
-    match s.parse::<u8>() {
-        Ok(n @ (1..=127 | 255)) => Ok(n),
-        _ => Err(format!("{s}: a node id is 1..=127, or 'none' (255) for a device that waits for LSS")),
-    }
+    // 1..=127 and 255; other numbers are refused with the device they belong to.
+    s.parse::<u8>().map_err(|_| format!("{s}: a node id is 1..=127, or 'none' (255) for a device that waits for LSS"))
 }
 
 /// A `--bus` address. An in-memory bus (`mem://`) lives inside one process, so `drive-sim`
