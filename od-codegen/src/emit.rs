@@ -1038,14 +1038,17 @@ fn inherent_impl(
 /// `ObjectDictionary::SERVICES`: the optional services whose objects the dictionary has (the
 /// rule of `od_runtime::od::Services::of`, which the generated devices' tests hold it to). A
 /// constant, so the runtime links no code for the others. With it, `PDO_REMAPPING` when the
-/// sidecar's `[pdo] remapping` is not CiA 301's (the trait's default).
-fn services(plan: &Plan<'_>, sidecar: Option<&crate::sidecar::Sidecar>) -> TokenStream {
+/// sidecar's `[pdo] remapping` is not CiA 301's (the trait's default), and with the EDS's
+/// `LSS_Supported=1`, `ObjectDictionary::LSS` (the device answers LSS, CiA 305, with
+/// od-runtime's `lss` feature; without it, nothing: the trait's default, no LSS).
+fn services(plan: &Plan<'_>, model: &Model, sidecar: Option<&crate::sidecar::Sidecar>) -> TokenStream {
     let has = |index: u16| plan.entries.iter().any(|e| e.index == index);
     // A PDO may be synchronous without 1005h: SYNC then comes on the predefined COB-ID 80h.
     let pdos = plan.entries.iter().any(|e| matches!(e.index, 0x1400..=0x15FF | 0x1800..=0x19FF));
     let (sync, guarding, consumer, history) =
         (has(0x1005) || pdos, has(0x100C) && has(0x100D), has(0x1016), has(0x1003));
     let remapping = pdo_remapping(sidecar);
+    let lss = (model.device_info.lss_supported == Some(true)).then(|| quote! { const LSS: bool = true; });
     quote! {
         const SERVICES: ::od_runtime::od::Services = ::od_runtime::od::Services {
             sync: #sync,
@@ -1054,6 +1057,7 @@ fn services(plan: &Plan<'_>, sidecar: Option<&crate::sidecar::Sidecar>) -> Token
             emcy_history: #history,
         };
         #remapping
+        #lss
     }
 }
 
@@ -1192,7 +1196,7 @@ pub(crate) fn dictionary(
     let name_fn = name_fn(names);
     let accessors = accessors(plan, sidecar, parts);
     let inherent = inherent_impl(new_fn, zeroed_fn, real_limits, accessors);
-    let traits = trait_impls(name_fn, services(plan, sidecar));
+    let traits = trait_impls(name_fn, services(plan, model, sidecar));
     quote! {
         #struct_item
 

@@ -124,6 +124,9 @@ enum Cmd {
         #[arg(long)]
         sequential: bool,
     },
+    /// Commissioning with LSS (CiA 305): scan, set-id, set-bitrate, store, inquire,
+    /// unconfigure-all, assign.
+    Lss(cli::lss::LssArgs),
     /// Drives a CiA 402 axis.
     Axis {
         /// Node id (1..=127).
@@ -343,6 +346,10 @@ async fn run(args: Args) -> Result<(), Fail> {
             if !cli::boot::run(&bus, &network, &options, args.json).await {
                 return Err(Fail(1, "the network did not boot: see the nodes above".to_owned()));
             }
+        }
+        Cmd::Lss(lss) => {
+            let eds = devices.default.as_ref().map(|d| &d.model);
+            cli::lss::run(&bus, lss, eds, args.json).await.map_err(|(code, msg)| Fail(code, msg))?;
         }
         Cmd::Scan { last, retries } => scan(&bus, last.clamp(1, 127), args.json, args.timeout, retries).await?,
         Cmd::Monitor { count, duration } => monitor(&bus, &devices, count, duration, args.json).await?,

@@ -52,6 +52,9 @@ pub struct BootNode {
     pub device: String,
     /// What to check and write.
     pub plan: Plan,
+    /// Its serial number, when the description gives one (`serial`, the DCF's
+    /// `LSS_SerialNumber`): the device LSS gives this node-ID to ([`crate::lss`]).
+    pub serial: Option<u32>,
 }
 
 /// The nodes of a network, each with its plan.
@@ -135,7 +138,10 @@ impl Network {
         let mut problems = Vec::new();
         for dcf in outcome.dcfs {
             match concise::plan(&dcf.model, dcf.node_id) {
-                Ok(plan) => net.nodes.push(BootNode { name: dcf.name, node_id: dcf.node_id, device: dcf.device, plan }),
+                Ok(plan) => {
+                    let serial = dcf.model.commissioning.as_ref().and_then(|c| c.lss_serial_number);
+                    net.nodes.push(BootNode { name: dcf.name, node_id: dcf.node_id, device: dcf.device, plan, serial })
+                }
                 Err(e) => problems.extend(e.iter().map(|p| format!("node `{}` ({}): {p}", dcf.name, dcf.device))),
             }
         }
@@ -180,7 +186,8 @@ impl Network {
         let plan = concise::plan(&model, node_id).map_err(|e| {
             LoadError::Invalid(e.iter().map(|p| format!("{shown}: {p}")).collect::<Vec<_>>().join("\n"))
         })?;
-        Ok(BootNode { name, node_id, device: shown, plan })
+        let serial = commissioning.and_then(|c| c.lss_serial_number);
+        Ok(BootNode { name, node_id, device: shown, plan, serial })
     }
 }
 

@@ -98,6 +98,14 @@ pub enum Error {
         /// What was wrong.
         error: crate::unit_error::UnitError,
     },
+    /// An LSS request failed (CiA 305): the step, why, and the device it was meant for.
+    #[error("{error}{}", device.map(|d| format!(" (device {d})")).unwrap_or_default())]
+    Lss {
+        /// The step and why.
+        error: od_runtime::master::lss::LssError,
+        /// The device selected (switch state selective, fastscan) when the step failed.
+        device: Option<od_runtime::lss::Identity>,
+    },
     /// A CiA 402 operation failed.
     #[error(transparent)]
     Axis(#[from] Box<AxisError>),
@@ -116,6 +124,7 @@ impl Error {
             Error::NodeId(_) => "NodeId",
             Error::Refused { .. } => "Refused",
             Error::Unit { .. } => "Unit",
+            Error::Lss { .. } => "Lss",
             Error::Axis(_) => "Axis",
         }
     }

@@ -24,6 +24,7 @@ pub mod boot;
 pub mod bus;
 pub mod error;
 pub mod event;
+pub mod lss;
 pub mod node;
 pub mod register;
 pub mod remote;

@@ -87,6 +87,14 @@ pub enum Event {
     },
     /// The CiA 402 state machine made a transition.
     Cia402(cia402::Transition),
+    /// LSS activate bit timing (CiA 305): switch the controller to the bit rate of `index` in
+    /// [`crate::lss::BIT_RATES`] after `delay_ms`, and send nothing for as long again.
+    LssBitTiming {
+        /// The bit timing table index.
+        index: u8,
+        /// The switch delay in ms.
+        delay_ms: u16,
+    },
 }
 
 /// The application side of a device: a veto on writes and a stream of events.
@@ -166,6 +174,11 @@ type Mapped = MappedHandle;
 const CIA402: bool = cfg!(feature = "cia402");
 /// Whether store/restore through [`Storage`] is built in (cargo feature `store`).
 const STORE: bool = cfg!(feature = "store");
+
+/// The LSS slave's hooks (cargo feature `lss`).
+#[cfg(feature = "lss")]
+#[path = "lss_device.rs"]
+mod lss_device;
 
 /// Whether a write of `index` has effects beyond the dictionary (communication objects, the
 /// CiA 402 controlword and modes of operation): such writes take [`Core::write_entry`]'s full
@@ -379,6 +392,9 @@ struct Core<OD, A, S, const P: usize, const M: usize> {
     statusword: Option<Handle>,
     quick_stop: Option<Handle>,
     remote: bool,
+    /// The LSS slave, when the device answers LSS.
+    #[cfg(feature = "lss")]
+    lss: Option<crate::lss::LssSlave>,
 }
 
 /// A CANopen device around the dictionary `OD`, with application `A`, parameter storage `S`,
@@ -1020,6 +1036,8 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
         if from != NmtState::Initialising {
             self.event(Event::Nmt { from, to: NmtState::Initialising });
         }
+        #[cfg(feature = "lss")]
+        self.lss_reset();
         if kind == ResetKind::Node {
             self.od.restore_defaults(Area::All, self.node);
             self.load_stored(Area::Application);
@@ -1059,6 +1077,11 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
             self.drive_transitions(ts);
         }
         self.update_statusword();
+        #[cfg(feature = "lss")]
+        if self.lss_unconfigured() {
+            self.bootup = false;
+            return;
+        }
         self.set_state(NmtState::PreOperational);
     }
 
@@ -1313,6 +1336,10 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
     // ---- time-driven services -------------------------------------------------------------
 
     fn poll(&mut self, now: Micros, emit: &mut impl FnMut(Frame)) {
+        #[cfg(feature = "lss")]
+        if self.lss_poll(emit) {
+            return;
+        }
         let node = u16::from(self.node);
         if self.nmt.emcy_sync_allowed() && self.emcy_valid {
             while !self.emcy_queue.is_empty() {
@@ -1389,6 +1416,10 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const P: usize, const M: usiz
     }
 
     fn on_frame(&mut self, frame: &Frame) -> bool {
+        #[cfg(feature = "lss")]
+        if self.lss_frame(frame) {
+            return false;
+        }
         let id = frame.id();
         let node = u16::from(self.node);
         if frame.is_rtr() {
@@ -1555,6 +1586,8 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
                 statusword: None,
                 quick_stop: None,
                 remote: true,
+                #[cfg(feature = "lss")]
+                lss: if OD::LSS { Some(crate::lss::LssSlave::new(node)) } else { None },
             },
         }
     }
@@ -1627,6 +1660,8 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
                 statusword: _,
                 quick_stop: _,
                 remote: _,
+                #[cfg(feature = "lss")]
+                    lss: _,
             } = c;
         }
         let node = node_id.get();
@@ -1694,6 +1729,8 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
             addr_of_mut!((*c).statusword).write(None);
             addr_of_mut!((*c).quick_stop).write(None);
             addr_of_mut!((*c).remote).write(true);
+            #[cfg(feature = "lss")]
+            addr_of_mut!((*c).lss).write(if OD::LSS { Some(crate::lss::LssSlave::new(node)) } else { None });
             place.assume_init_mut()
         }
     }
@@ -1702,6 +1739,8 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
         self.core.now = now;
         if !self.started {
             self.started = true;
+            #[cfg(feature = "lss")]
+            self.core.lss_start();
             self.core.reset(ResetKind::Node);
         }
         self.apply_sdo_reset();
@@ -1741,9 +1780,10 @@ impl<OD: ObjectDictionary, A: App<OD>, S: Storage, const BUF: usize, const PDOS:
         self.apply_sdo_reset();
     }
 
-    /// The node id.
+    /// The node id in use (set over LSS, when the device answers LSS); a device without one
+    /// (LSS, [`Device::active_node_id`] `None`) gives the one it was made with.
     pub fn node_id(&self) -> NodeId {
-        self.node_id
+        NodeId::new(self.core.node).unwrap_or(self.node_id)
     }
 
     /// The NMT state.

@@ -35,6 +35,7 @@ pub mod crc;
 mod device;
 pub mod emcy;
 pub mod frame;
+pub mod lss;
 pub mod master;
 pub mod nmt;
 pub mod od;

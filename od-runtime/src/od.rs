@@ -649,6 +649,10 @@ pub trait ObjectDictionary {
     /// A constant, so a firmware links only the rule it keeps.
     const PDO_REMAPPING: crate::pdo::Remapping = crate::pdo::Remapping::Cia301;
 
+    /// Whether the device answers LSS (CiA 305; the EDS's `LSS_Supported=1`), with
+    /// od-runtime's `lss` feature. Default: no.
+    const LSS: bool = false;
+
     /// Every entry's metadata, sorted by `(index, sub)`.
     fn entries(&self) -> &'static [EntryInfo];
 

@@ -43,6 +43,20 @@ pub trait Storage {
         let _ = commit;
         Ok(())
     }
+
+    /// Stores the LSS configuration (CiA 305 "store configuration"): the node-ID
+    /// ([`crate::lss::UNCONFIGURED`] for none) and the bit timing table index, if one is known.
+    /// Default: not supported (the master is told error code 1).
+    fn save_lss(&mut self, config: crate::lss::LssConfig) -> Result<(), AbortCode> {
+        let _ = config;
+        Err(AbortCode::CANNOT_STORE)
+    }
+
+    /// The LSS configuration stored by [`Storage::save_lss`], read once at start-up: it takes
+    /// the place of the node-ID the device was made with. Default: none.
+    fn load_lss(&mut self) -> Option<crate::lss::LssConfig> {
+        None
+    }
 }
 
 /// No persistent storage: saving aborts with `CANNOT_STORE`, nothing is ever loaded.

@@ -48,6 +48,9 @@ const DEVICES: &[&str] = &["drcs", "drvi", "akd"];
 /// The services a firmware author chooses (od-runtime's features, passed on by the firmware's):
 /// every firmware is built with all of them; `--services` builds the DRCS without each.
 pub const SERVICES: &[&str] = &["sdo-block", "cia402", "store"];
+/// Services a firmware is built without (`--services` measures what each adds to the DRCS
+/// firmware built with all of [`SERVICES`]).
+pub const OPTIONAL: &[&str] = &["lss"];
 
 /// The C reference (issue #29): CANopenNode v4, commit 9b8beed, built for the same Cortex-M4F
 /// by `scripts/canopennode-size.sh` (arm-none-eabi-gcc -Os, LTO, --gc-sections, newlib-nano,
@@ -253,6 +256,11 @@ fn services(root: &Path) -> Result<(), String> {
     println!("DRCS firmware: {all} B of flash with {}, {none} B with none of them", SERVICES.join(", "));
     for (s, cost) in rows {
         println!("  {s:<10} {cost:>6} B");
+    }
+    for s in OPTIONAL {
+        let with: Vec<&str> = SERVICES.iter().copied().chain([*s]).collect();
+        let cost = flash(&with)?.saturating_sub(all);
+        println!("  {s:<10} {cost:>6} B (off by default: added to the above)");
     }
     Ok(())
 }

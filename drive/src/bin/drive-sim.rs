@@ -171,8 +171,13 @@ struct RunArgs {
     #[arg(long, required = true, value_parser = parse_kind)]
     device: Vec<DeviceKind>,
     /// Node id (1..=127) of the preceding --device; may be left out when its DCF names one.
-    #[arg(long)]
+    /// `none` (or 255): the device starts without one and waits for LSS (CiA 305).
+    #[arg(long, value_parser = parse_node_id)]
     node_id: Vec<u8>,
+    /// Serial number (1018h sub 4) of the preceding --device, instead of its EDS's: identical
+    /// devices told apart over LSS. Its saved state is then kept under the serial number.
+    #[arg(long)]
+    serial: Vec<u32>,
     /// DCF whose ParameterValues the preceding --device applies at start and at every reset.
     #[arg(long)]
     dcf: Vec<PathBuf>,
@@ -226,6 +231,15 @@ struct RunArgs {
 
 fn parse_kind(s: &str) -> Result<DeviceKind, String> {
     s.parse()
+}
+
+/// A `--node-id`: 1..=127, or `none`/255 for a device that waits for LSS.
+fn parse_node_id(s: &str) -> Result<u8, String> {
+    if s.eq_ignore_ascii_case("none") {
+        return Ok(od_runtime::lss::UNCONFIGURED);
+    }
+    // 1..=127 and 255; other numbers are refused with the device they belong to.
+    s.parse::<u8>().map_err(|_| format!("{s}: a node id is 1..=127, or 'none' (255) for a device that waits for LSS"))
 }
 
 /// A `--bus` address. An in-memory bus (`mem://`) lives inside one process, so `drive-sim`
@@ -348,6 +362,12 @@ fn device_groups(args: &RunArgs, m: &ArgMatches) -> Result<Vec<DeviceGroup>, Str
             return Err(format!("device {} ({}) has two --node-id", g + 1, groups[g].kind));
         }
     }
+    for (at, &serial) in positions("serial").iter().zip(&args.serial) {
+        let g = owner(*at, "serial")?;
+        if groups[g].config.serial.replace(serial).is_some() {
+            return Err(format!("device {} ({}) has two --serial", g + 1, groups[g].kind));
+        }
+    }
     for (at, machine) in positions("machine").iter().zip(&args.machine) {
         let g = owner(*at, "machine")?;
         if groups[g].machine.replace(machine.clone()).is_some() {
@@ -426,8 +446,18 @@ fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
         };
         apps.set_machine(machine);
         let node = g.kind.build(&g.config, &apps).map_err(|e| format!("{}: {e}", g.kind))?;
-        let name = format!("{} node {}", g.kind, node.node_id().get());
-        if nodes.iter().any(|(_, n)| n.node_id() == node.node_id()) {
+        let name = match (node.active_node_id(), g.config.serial) {
+            (Some(id), None) => format!("{} node {}", g.kind, id.get()),
+            (Some(id), Some(sn)) => format!("{} node {} (serial {sn})", g.kind, id.get()),
+            (None, sn) => {
+                format!("{} without node id (serial {})", g.kind, sn.map_or("of its EDS".into(), |s| s.to_string()))
+            }
+        };
+        // Devices with their own serial numbers may share a node id: LSS sets them apart.
+        if g.config.serial.is_none()
+            && let Some(id) = node.active_node_id()
+            && nodes.iter().any(|(_, n)| n.active_node_id() == Some(id))
+        {
             return Err(format!("{name}: two devices with node id {}", node.node_id().get()));
         }
         nodes.push((name, node));

@@ -87,6 +87,14 @@ impl Storage for StoreFilter {
     fn end_transaction(&mut self, commit: bool) -> Result<(), AbortCode> {
         self.inner.end_transaction(commit)
     }
+
+    fn save_lss(&mut self, config: od_runtime::lss::LssConfig) -> Result<(), AbortCode> {
+        self.inner.save_lss(config)
+    }
+
+    fn load_lss(&mut self) -> Option<od_runtime::lss::LssConfig> {
+        self.inner.load_lss()
+    }
 }
 
 /// The `[store]` list of a bundled device (empty if its sidecar does not parse, which the

@@ -59,9 +59,20 @@ impl DeviceKind {
                 .map_err(|error| NodeSetupError::Dcf { path: path.clone(), error })?,
             None => ParameterSet::new(),
         };
+        let mut params = params;
+        if let Some(serial) = config.serial {
+            params.set(0x1018, 4, serial.to_le_bytes().to_vec());
+        }
         let raw = config.node_id.or(params.node_id()).ok_or(NodeSetupError::NoNodeId)?;
-        let id = NodeId::new(raw).ok_or(NodeSetupError::BadNodeId(raw))?;
-        let tag = format!("{}-node{raw}", self.name());
+        // 255: no node-ID (LSS); the dictionary's $NODEID values wait for the one LSS gives.
+        let unconfigured = raw == od_runtime::lss::UNCONFIGURED;
+        let id =
+            if unconfigured { NodeId::new(127) } else { NodeId::new(raw) }.ok_or(NodeSetupError::BadNodeId(raw))?;
+        // A device known by its serial number keeps its files under it: its node-ID may change.
+        let tag = match config.serial {
+            Some(serial) => format!("{}-sn{serial}", self.name()),
+            None => format!("{}-node{raw}", self.name()),
+        };
         let (backend, retain): (Box<dyn od_runtime::Storage + Send>, Box<dyn Retain>) = match &config.state_dir {
             Some(dir) => {
                 let error = |error| NodeSetupError::Storage { dir: dir.clone(), error };
@@ -76,7 +87,8 @@ impl DeviceKind {
         // writable entry: DRVI 6.3.2.13, DRCS 3.2.13, AKD 6.2.1.12.
         let storage = crate::drives::store::stored_objects_only(self, NodeStorage::new(Arc::new(params), backend));
         let timeout = config.sdo_timeout;
-        let config = (timeout, retain);
+        let lss = (!unconfigured).then_some(id);
+        let config = (timeout, retain, lss);
         Ok(match self {
             DeviceKind::Drvi => {
                 boxed(Node::new(generated::drvi::Dictionary::new(raw), apps.drvi(), storage, id), config)
@@ -89,12 +101,16 @@ impl DeviceKind {
     }
 }
 
-fn boxed<OD, A>(node: Node<OD, A>, (sdo_timeout, retain): (Option<Micros>, Box<dyn Retain>)) -> Box<dyn AnyNode>
+type Setup = (Option<Micros>, Box<dyn Retain>, Option<NodeId>);
+
+fn boxed<OD, A>(node: Node<OD, A>, (sdo_timeout, retain, lss): Setup) -> Box<dyn AnyNode>
 where
     OD: od_runtime::od::ObjectDictionary + Send + 'static,
     A: DriveApp<OD> + Send + 'static,
 {
     let mut node = node.with_retain(retain);
+    // Every simulated drive answers LSS (CiA 305).
+    node.enable_lss(lss);
     if let Some(t) = sdo_timeout {
         node.set_sdo_timeout(t);
     }
@@ -121,7 +137,8 @@ impl FromStr for DeviceKind {
 /// How to set up one node.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct NodeConfig {
-    /// The node id (1..=127); `None` takes the DCF's `NodeID`.
+    /// The node id (1..=127, or 255: none, the device waits for LSS); `None` takes the DCF's
+    /// `NodeID`.
     pub node_id: Option<u8>,
     /// A DCF whose `ParameterValue`s are applied at start and at every reset.
     pub dcf: Option<PathBuf>,
@@ -129,6 +146,9 @@ pub struct NodeConfig {
     pub state_dir: Option<PathBuf>,
     /// SDO server timeout; `None` keeps od-runtime's default (1 s).
     pub sdo_timeout: Option<Micros>,
+    /// The serial number (1018h sub 4) instead of the EDS's, so that identical devices can be
+    /// told apart over LSS; the device's files in the state directory are then named by it.
+    pub serial: Option<u32>,
 }
 
 /// Why a node could not be set up.
@@ -137,8 +157,8 @@ pub enum NodeSetupError {
     /// Neither the configuration nor the DCF gives a node id.
     #[error("no node id: give --node-id (or a DCF with [DeviceComissioning] NodeID)")]
     NoNodeId,
-    /// A node id outside 1..=127.
-    #[error("node id {0} is outside 1..=127")]
+    /// A node id outside 1..=127 (and not 255, none).
+    #[error("node id {0} is outside 1..=127 (255 or 'none': no node-ID, set over LSS)")]
     BadNodeId(u8),
     /// The DCF cannot be applied.
     #[error("DCF {}:\n{error}", path.display())]

@@ -190,6 +190,13 @@ where
         }
     }
 
+    /// Makes the device answer LSS (CiA 305); `None` starts it without a node-ID (no boot-up,
+    /// nothing but LSS until a master gives it one). Before the first [`Node::handle`] or
+    /// [`Node::poll`]; a node-ID stored over LSS takes the place of `node_id` at start.
+    pub fn enable_lss(&mut self, node_id: Option<NodeId>) {
+        self.dev.enable_lss(node_id);
+    }
+
     /// Keeps the application's retained data ([`Ctx::retain`]) in `retain` instead of a
     /// [`MemoryRetain`] of its own: a [`FileRetain`] in the state directory, or a
     /// `MemoryRetain` shared with the node this one replaces. Call before the first
@@ -362,6 +369,10 @@ pub trait AnyNode: Send + 'static {
     fn next_deadline(&self) -> Micros;
     /// The node id.
     fn node_id(&self) -> NodeId;
+    /// The node-ID in use: `None` for a device without one (LSS).
+    fn active_node_id(&self) -> Option<NodeId> {
+        Some(self.node_id())
+    }
     /// The NMT state.
     fn nmt_state(&self) -> NmtState;
     /// [`Node::upload`].
@@ -389,6 +400,9 @@ where
     }
     fn node_id(&self) -> NodeId {
         self.dev.node_id()
+    }
+    fn active_node_id(&self) -> Option<NodeId> {
+        self.dev.active_node_id()
     }
     fn nmt_state(&self) -> NmtState {
         self.dev.nmt_state()

@@ -122,6 +122,13 @@ impl ParameterSet {
         self.records.is_empty()
     }
 
+    /// Sets the value of one entry (replacing the DCF's, if it has one): e.g. `drive-sim
+    /// --serial`'s 1018h sub 4, applied at every reset as the DCF's values are.
+    pub fn set(&mut self, index: u16, sub: u8, data: Vec<u8>) {
+        self.records.retain(|r| (r.index, r.sub) != (index, sub));
+        self.records.push(Record { index, sub, data });
+    }
+
     /// Calls `apply` for every value of `area`.
     pub fn apply(&self, area: Area, apply: &mut dyn FnMut(u16, u8, &[u8])) {
         for r in self.records.iter().filter(|r| area.contains(r.index)) {
@@ -240,5 +247,13 @@ impl Storage for NodeStorage {
 
     fn end_transaction(&mut self, commit: bool) -> Result<(), AbortCode> {
         self.backend.end_transaction(commit)
+    }
+
+    fn save_lss(&mut self, config: od_runtime::lss::LssConfig) -> Result<(), AbortCode> {
+        self.backend.save_lss(config)
+    }
+
+    fn load_lss(&mut self) -> Option<od_runtime::lss::LssConfig> {
+        self.backend.load_lss()
     }
 }

@@ -53,6 +53,7 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
 use od_runtime::Storage;
+use od_runtime::lss::LssConfig;
 use od_runtime::od::{AbortCode, Area};
 
 /// File magic of a stored parameter image.
@@ -352,6 +353,8 @@ pub fn decode_image(bytes: &[u8], area: Area, tag: &str) -> Result<Vec<Record>, 
 pub struct MemoryStorage {
     images: [Option<Vec<Record>>; 3],
     pending: Option<(Area, Vec<Record>)>,
+    /// The LSS configuration stored (CiA 305).
+    lss: Option<LssConfig>,
 }
 
 impl MemoryStorage {
@@ -405,6 +408,15 @@ impl Storage for MemoryStorage {
     fn erase(&mut self, area: Area) -> Result<(), AbortCode> {
         self.images[slot(area)?] = None;
         Ok(())
+    }
+
+    fn save_lss(&mut self, config: LssConfig) -> Result<(), AbortCode> {
+        self.lss = Some(config);
+        Ok(())
+    }
+
+    fn load_lss(&mut self) -> Option<LssConfig> {
+        self.lss
     }
 }
 
@@ -747,6 +759,40 @@ impl Storage for FileStorage {
 
     fn erase(&mut self, area: Area) -> Result<(), AbortCode> {
         self.change(area, None)
+    }
+
+    /// `<dir>/<tag>.lss`: two lines, `node_id = N` (255: none) and `bit_rate = INDEX` (the
+    /// CiA 305 table index, when known), written atomically.
+    fn save_lss(&mut self, config: LssConfig) -> Result<(), AbortCode> {
+        let mut text = format!("node_id = {}\n", config.node_id);
+        if let Some(i) = config.bit_rate {
+            text.push_str(&format!("bit_rate = {i}\n"));
+        }
+        let (path, tmp) = (self.dir.join(format!("{}.lss", self.tag)), self.dir.join(format!("{}.lss.tmp", self.tag)));
+        write_atomically(&self.dir, &tmp, &path, text.as_bytes()).map_err(|e| {
+            self.warn(format!("cannot store the LSS configuration in {}: {e}", path.display()));
+            AbortCode::HARDWARE_ERROR
+        })
+    }
+
+    fn load_lss(&mut self) -> Option<LssConfig> {
+        let path = self.dir.join(format!("{}.lss", self.tag));
+        let text = fs::read_to_string(&path).ok()?;
+        let mut config = LssConfig { node_id: od_runtime::lss::UNCONFIGURED, bit_rate: None };
+        let mut node = None;
+        for line in text.lines().filter(|l| !l.trim().is_empty()) {
+            let parsed = line.split_once('=').and_then(|(k, v)| Some((k.trim(), v.trim().parse::<u8>().ok()?)));
+            match parsed {
+                Some(("node_id", v)) if (1..=127).contains(&v) || v == 255 => node = Some(v),
+                Some(("bit_rate", v)) if od_runtime::lss::bit_rate_kbit(v).is_some() => config.bit_rate = Some(v),
+                _ => {
+                    self.warn(format!("ignoring the stored LSS configuration {}: bad line {line:?}", path.display()));
+                    return None;
+                }
+            }
+        }
+        config.node_id = node?;
+        Some(config)
     }
 
     fn begin_transaction(&mut self) -> Result<(), AbortCode> {

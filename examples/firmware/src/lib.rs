@@ -106,7 +106,10 @@ impl Firmware {
         // raw pointers into `place`, which is valid for writes and exclusively ours.
         unsafe {
             let dev = &mut *core::ptr::addr_of_mut!((*p).dev).cast::<core::mem::MaybeUninit<Dev>>();
-            Dev::init_in_place(dev, Od::zeroed(), Axis::new(), NoStorage, node);
+            let _dev = Dev::init_in_place(dev, Od::zeroed(), Axis::new(), NoStorage, node);
+            // With the `lss` feature the device answers LSS (CiA 305).
+            #[cfg(feature = "lss")]
+            _dev.enable_lss(Some(node));
             core::ptr::addr_of_mut!((*p).link).write(CanLink::new());
             core::ptr::addr_of_mut!((*p).last_ms).write(0);
             place.assume_init_mut()

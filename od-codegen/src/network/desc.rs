@@ -61,6 +61,9 @@ pub struct NodeDesc {
     pub node_id: Option<Located<i128>>,
     /// `baud_rate` (must agree with the network's).
     pub baud_rate: Option<Located<i128>>,
+    /// `serial`: the device's serial number (1018h sub 4), which LSS finds it by (the DCF's
+    /// `LSS_SerialNumber`).
+    pub serial: Option<Located<i128>>,
     /// `[nodes.NAME.parameters]`, in file order.
     pub parameters: Vec<(Located<String>, Located<Scalar>)>,
     /// `tpdoN` / `rpdoN`, in file order.
@@ -249,10 +252,11 @@ impl<'a> Reader<'a> {
             device: None,
             node_id: None,
             baud_rate: None,
+            serial: None,
             parameters: Vec::new(),
             pdos: Vec::new(),
         };
-        const KNOWN: &[&str] = &["device", "node_id", "baud_rate", "parameters", "tpdoN", "rpdoN"];
+        const KNOWN: &[&str] = &["device", "node_id", "baud_rate", "serial", "parameters", "tpdoN", "rpdoN"];
         let mut present = (false, false);
         for (k, v) in sorted(t) {
             let key = k.get_ref().as_ref();
@@ -266,6 +270,7 @@ impl<'a> Reader<'a> {
                     node.node_id = self.integer(v, "`node_id`");
                 }
                 "baud_rate" => node.baud_rate = self.integer(v, "`baud_rate`"),
+                "serial" => node.serial = self.integer(v, "`serial`"),
                 "parameters" => {
                     if let Some(p) = self.table(v, "`parameters`") {
                         for (pk, pv) in sorted(p) {

@@ -174,6 +174,20 @@ pub fn build(display: &str, dir: &Path, text: &str) -> Outcome {
             }
         });
 
+        // Serial number (LSS).
+        let serial = node.serial.as_ref().and_then(|s| match u32::try_from(s.value) {
+            Ok(v) => Some(v),
+            Err(_) => {
+                diags.push(
+                    Diagnostic::error(codes::BAD_VALUE, format!("serial number {} is outside 0..=4294967295", s.value))
+                        .at(reader.snippet(s.span.clone()))
+                        .context(format!("node `{name}`"))
+                        .help("the serial number is the device's 1018h sub 4, an UNSIGNED32"),
+                );
+                None
+            }
+        });
+
         // Bit rate.
         let baud: Option<(i128, Range<usize>)> = match (&node.baud_rate, &bus_baud) {
             (Some(b), Some((bus, bus_span))) => {
@@ -337,6 +351,7 @@ pub fn build(display: &str, dir: &Path, text: &str) -> Outcome {
         if let Some(c) = model.commissioning.as_mut() {
             c.node_name = Some(name.clone());
             c.network_name = network.name.as_ref().map(|n| n.value.clone());
+            c.lss_serial_number = serial.or(c.lss_serial_number);
         }
         let text = eds::write::write_dcf(&model);
         dcfs.push(NodeDcf { name: name.clone(), node_id, device: device.display.clone(), file_name, model, text });

@@ -240,3 +240,22 @@ fn the_header_never_holds_an_absolute_path() {
     let outputs = Builder::new().root(dir.join("src")).device("mini", &abs).generate().unwrap();
     assert_eq!(outputs[0].text.lines().next().unwrap(), od_codegen::header("../tests/fixtures/mini.eds"));
 }
+
+#[test]
+fn lss_supported_gives_the_dictionary_lss() {
+    let (shown, bytes) = fixture("mini.eds");
+    let text = String::from_utf8(bytes).unwrap();
+    for (value, want) in [("1", true), ("0", false)] {
+        let edited = if text.contains("LSS_Supported=") {
+            text.replace("LSS_Supported=0", &format!("LSS_Supported={value}"))
+                .replace("LSS_Supported=1", &format!("LSS_Supported={value}"))
+        } else {
+            text.replacen("[DeviceInfo]", &format!("[DeviceInfo]\nLSS_Supported={value}"), 1)
+        };
+        let parsed = eds::parse(&shown, edited.as_bytes(), &eds::Options::lenient());
+        assert_eq!(parsed.model.device_info.lss_supported, Some(want));
+        let g = expand(&parsed.model, &Options::new("mini", shown.clone()));
+        let out = render(&g.tokens, &shown).unwrap();
+        assert_eq!(out.contains("const LSS: bool = true;"), want, "LSS_Supported={value}");
+    }
+}

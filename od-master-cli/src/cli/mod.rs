@@ -4,6 +4,7 @@
 pub mod boot;
 pub mod decode;
 pub mod device;
+pub mod lss;
 pub mod object;
 pub mod units;
 pub mod value;

@@ -4,3 +4,4 @@
 mod boot_cli;
 mod cli;
 mod cli_errors;
+mod lss_cli;

@@ -10,6 +10,7 @@ mod events;
 mod faults;
 mod harness;
 mod hub;
+mod lss;
 mod readme;
 mod sdo;
 mod slcan;

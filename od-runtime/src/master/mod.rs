@@ -14,6 +14,7 @@
 //! | EMCY consumer | [`Emergency`] | [`emcy`] |
 //! | SYNC producer with counter (1019h) | [`SyncProducer`] | [`sync`] |
 //! | PDO packing from a mapping set at run time | [`PdoMapping`] | [`pdo`] |
+//! | LSS master (CiA 305): switch, configure, store, inquire, identify, fastscan | [`LssMaster`] | [`lss`] |
 //!
 //! Each machine has the same three entry points, so a shell drives them all alike:
 //! `on_frame(&frame, now)` for every frame received (a machine keeps only its own COB-IDs),
@@ -101,6 +102,7 @@
 
 pub mod emcy;
 pub mod heartbeat;
+pub mod lss;
 pub mod nmt;
 pub mod pdo;
 pub mod sdo_client;
@@ -108,6 +110,7 @@ pub mod sync;
 
 pub use emcy::Emergency;
 pub use heartbeat::{HeartbeatProducer, NodeEvent, NodeMonitor, Watch};
+pub use lss::LssMaster;
 pub use pdo::{PdoError, PdoField, PdoMapping, PdoValue};
 pub use sdo_client::{Direction, Done, Mode, Reject, Rejected, SdoClient, SdoError, TransferError};
 pub use sync::SyncProducer;

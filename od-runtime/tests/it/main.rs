@@ -9,6 +9,10 @@ mod cia402;
 mod cia402_off;
 mod common;
 mod handles;
+#[cfg(feature = "lss")]
+mod lss;
+#[cfg(feature = "lss")]
+mod lss_master;
 mod master;
 mod nmt;
 mod pdo;

@@ -438,6 +438,8 @@ pub struct MemStorage {
     pending: Vec<(u16, u8, Vec<u8>)>,
     pub fail: bool,
     pub saves: usize,
+    /// The LSS configuration stored (CiA 305 store configuration).
+    pub lss: Option<od_runtime::lss::LssConfig>,
 }
 
 fn key(area: Area) -> u8 {
@@ -476,6 +478,16 @@ impl Storage for MemStorage {
     fn erase(&mut self, area: Area) -> Result<(), AbortCode> {
         self.images.remove(&key(area));
         Ok(())
+    }
+    fn save_lss(&mut self, config: od_runtime::lss::LssConfig) -> Result<(), AbortCode> {
+        if self.fail {
+            return Err(AbortCode::HARDWARE_ERROR);
+        }
+        self.lss = Some(config);
+        Ok(())
+    }
+    fn load_lss(&mut self) -> Option<od_runtime::lss::LssConfig> {
+        self.lss
     }
 }
 
