@@ -91,6 +91,18 @@ pub enum Error {
     /// A CiA 402 operation failed.
     #[error(transparent)]
     Axis(#[from] Box<AxisError>),
+    /// The node sent a boot-up message while this transfer was running or waiting: it
+    /// restarted and forgot the transfer (and its configuration). Ended at once, not by its
+    /// timeout.
+    #[error("node {node}, {index:04X}h sub {sub}: the node rebooted (boot-up message) during the transfer")]
+    Rebooted {
+        /// The node.
+        node: u8,
+        /// Object index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+    },
 }
 
 /// A failed CiA 402 operation: which drive, in which state, on which object, and what.

@@ -11,6 +11,7 @@
 //! | errors naming the node, the object and the abort code | [`Error`] | [`error`] |
 //! | typed entries, PDOs and quantities for generated clients | [`remote::Object`] | [`remote`] |
 //! | a network configured at boot (CiA 302-2): identity, configuration, PDOs, start | [`boot::boot`] | [`boot`] |
+//! | a network kept running after boot: reboots, lost heartbeats, policies, events | [`supervisor::Supervisor`] | [`supervisor`] |
 //! | a blocking facade for scripts, wrapping the async handles | [`blocking::Bus`] | [`blocking`] |
 //!
 //! The protocol is `od_runtime::master`'s (sans-IO state machines); the buses are `od-bus`'s.
@@ -26,6 +27,7 @@ pub mod error;
 pub mod event;
 pub mod node;
 pub mod remote;
+pub mod supervisor;
 
 pub use axis::{Axis, AxisConfig, Homing, HomingMethod, Move, UnitAxis};
 pub use boot::{BootError, BootOptions, Network, NodeReport};
