@@ -324,7 +324,14 @@ struct NodeRun {
     reset_at: Option<Instant>,
     /// Reported failed for good.
     given_up: bool,
+    /// After a reset the master sent: when to boot it anyway if no boot-up was heard (a
+    /// boot-up lost, or a heartbeat that cannot get through), and how many such boots failed.
+    boot_check_at: Option<Instant>,
+    checks_failed: u32,
 }
+
+/// How long after an NMT reset the node's boot-up is waited for before it is booted anyway.
+const BOOT_CHECK: Duration = Duration::from_secs(1);
 
 /// What a finished task of the loop brings back.
 enum Done {
@@ -378,19 +385,21 @@ impl Supervisor {
         for n in self.network.nodes.iter().filter(|n| alive.contains(&n.node_id)) {
             self.emit(SupervisorEvent::KeptAlive { node: n.node_id, name: n.name.clone() });
         }
+        // Watched before the boot: a node that goes silent right after it is lost, not
+        // forgotten by a watch that starts over.
+        for n in &self.network.nodes {
+            self.watch(n).await;
+        }
         let all = to_boot.len() == self.network.nodes.len();
         let reports = boot::boot_nodes(&self.bus, &to_boot, true, &|n| n.supervision.start, all).await;
         for r in &reports {
             self.settle_boot(r, &mut runs, &mut summary, None).await;
         }
         summary.boot = reports;
-        for n in &self.network.nodes {
-            self.watch(n).await;
-        }
 
         tokio::pin!(shutdown);
         loop {
-            let next_reset = runs.values().filter_map(|r| r.reset_at).min();
+            let next_reset = runs.values().flat_map(|r| [r.reset_at, r.boot_check_at]).flatten().min();
             tokio::select! {
                 () = &mut shutdown => break,
                 event = bus_events.recv() => match event {
@@ -419,6 +428,17 @@ impl Supervisor {
                 () = sleep_until(next_reset) => {
                     let now = Instant::now();
                     let due: Vec<u8> = runs.iter().filter(|(_, r)| r.reset_at.is_some_and(|t| t <= now)).map(|(id, _)| *id).collect();
+                    let checks: Vec<u8> = runs.iter().filter(|(_, r)| r.boot_check_at.is_some_and(|t| t <= now)).map(|(id, _)| *id).collect();
+                    for node in checks {
+                        let Some(i) = self.position(node) else { continue };
+                        let n = &self.network.nodes[i];
+                        if let Some(run) = runs.get_mut(&node) {
+                            run.boot_check_at = None;
+                            if run.booting.is_none() && n.supervision.configure {
+                                self.spawn_boot(n, run, &mut tasks);
+                            }
+                        }
+                    }
                     for node in due {
                         if let Some(run) = runs.get_mut(&node) {
                             run.reset_at = None;
@@ -427,6 +447,7 @@ impl Supervisor {
                         let n = &self.network.nodes[i];
                         if let Some(action) = policy::decide(&n.supervision, &self.network.supervision, Input::StillLost) {
                             self.act(n, action).await;
+                            self.expect_boot(action, node, &mut runs);
                         }
                     }
                 }
@@ -453,6 +474,7 @@ impl Supervisor {
                 let Some(run) = runs.get_mut(&node) else { return true };
                 run.boot_up_at = Some(Instant::now());
                 run.reset_at = None;
+                run.boot_check_at = None;
                 if let Some(old) = run.booting.take() {
                     old.abort();
                 }
@@ -495,6 +517,24 @@ impl Supervisor {
             _ => {}
         }
         true
+    }
+
+    /// After `action` (a reset sent because of `node`), the nodes reset are booted
+    /// [`BOOT_CHECK`] later even if their boot-up is not heard.
+    fn expect_boot(&self, action: Action, node: u8, runs: &mut BTreeMap<u8, NodeRun>) {
+        let at = Instant::now() + BOOT_CHECK;
+        for (id, run) in runs.iter_mut() {
+            let reset = match action {
+                Action::ResetNode => *id == node,
+                Action::ResetAll => true,
+                _ => false,
+            };
+            if reset {
+                run.boot_check_at = Some(at);
+                run.checks_failed = 0;
+                run.boot_up_at = Some(Instant::now());
+            }
+        }
     }
 
     fn spawn_boot(&self, n: &BootNode, run: &mut NodeRun, tasks: &mut JoinSet<Done>) {
@@ -560,6 +600,7 @@ impl Supervisor {
             Ok(()) => {
                 run.failures = 0;
                 run.given_up = false;
+                run.checks_failed = 0;
                 match boot_up_at {
                     Some(at) => {
                         summary.reconfigured += 1;
@@ -595,6 +636,14 @@ impl Supervisor {
                     run.failures -= 1;
                     return;
                 }
+                // A boot after a reset without a boot-up heard (the node may still be out of
+                // reach): tried again a bounded number of times.
+                if boot_up_at.is_some() && !n.supervision.mandatory && run.checks_failed < self.network.supervision.boot_attempts {
+                    run.checks_failed += 1;
+                    if run.checks_failed < self.network.supervision.boot_attempts {
+                        run.boot_check_at = Some(Instant::now() + BOOT_CHECK);
+                    }
+                }
                 let failures = run.failures;
                 let action = policy::decide(&n.supervision, &self.network.supervision, Input::BootFailed { failures });
                 let final_failure = match action {
@@ -609,6 +658,7 @@ impl Supervisor {
                 };
                 if let Some(action) = action {
                     self.act(n, action).await;
+                    self.expect_boot(action, n.node_id, runs);
                 }
                 if final_failure && n.supervision.mandatory {
                     summary.mandatory_failed.push(n.name.clone());

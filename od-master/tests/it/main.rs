@@ -13,3 +13,4 @@ mod harness;
 mod hub;
 mod readme;
 mod sdo;
+mod supervisor;
