@@ -34,8 +34,8 @@ use od_bus::CanFrame;
 use tokio::sync::broadcast;
 use tokio::time::Instant;
 
-use od_codegen::network::concise::{self, Plan, Role};
-use od_codegen::network::desc::{NetworkSupervision, NodeSupervision};
+use eds::concise::{self, Plan, Role};
+use crate::supervisor::policy::{NetworkSupervision, NodeSupervision};
 use od_runtime::master::nmt::Target;
 use od_runtime::{NmtCommand, NodeId};
 
@@ -119,6 +119,10 @@ impl Network {
     }
 
     /// A network from a description file (device paths relative to it).
+    ///
+    /// Needs the feature `network-description` (it reads the description with the code
+    /// generator's `od_codegen::network`, which names objects as generated code does); without
+    /// it, the error says so.
     pub fn from_description(path: &Path) -> Result<Self, LoadError> {
         let text =
             std::fs::read_to_string(path).map_err(|error| LoadError::Io { path: path.display().to_string(), error })?;
@@ -128,12 +132,13 @@ impl Network {
 
     /// A network from a description's text: `display` names it in messages, device paths are
     /// relative to `dir`.
+    #[cfg(feature = "network-description")]
     pub fn from_description_text(display: &str, dir: &Path, text: &str) -> Result<Self, LoadError> {
         let outcome = od_codegen::network::build(display, dir, text);
         if outcome.has_errors() {
             return Err(LoadError::Invalid(od_codegen::network::render_all(&outcome.diagnostics)));
         }
-        let mut net = Network { supervision: outcome.supervision, ..Network::default() };
+        let mut net = Network { supervision: outcome.supervision.into(), ..Network::default() };
         let mut problems = Vec::new();
         for dcf in outcome.dcfs {
             match concise::plan(&dcf.model, dcf.node_id) {
@@ -142,12 +147,24 @@ impl Network {
                     node_id: dcf.node_id,
                     device: dcf.device,
                     plan,
-                    supervision: dcf.supervision,
+                    supervision: dcf.supervision.into(),
                 }),
                 Err(e) => problems.extend(e.iter().map(|p| format!("node `{}` ({}): {p}", dcf.name, dcf.device))),
             }
         }
         if problems.is_empty() { Ok(net) } else { Err(LoadError::Invalid(problems.join("\n"))) }
+    }
+
+    /// A network from a description's text: `display` names it in messages, device paths are
+    /// relative to `dir`. This build has no feature `network-description`: always an error
+    /// that says so (DCFs load without it, through [`Network::load`]).
+    #[cfg(not(feature = "network-description"))]
+    pub fn from_description_text(display: &str, dir: &Path, text: &str) -> Result<Self, LoadError> {
+        let _ = (dir, text);
+        Err(LoadError::Invalid(format!(
+            "{display}: reading a network description needs od-master's feature `network-description` \
+             (od-master = {{ version = \"...\", features = [\"network-description\"] }}); DCFs load without it"
+        )))
     }
 
     /// One node from its DCF: the node id from `[DeviceComissioning]` `NodeID`.
