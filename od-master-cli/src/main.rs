@@ -118,6 +118,18 @@ enum Cmd {
         #[arg(long)]
         sequential: bool,
     },
+    /// Boots a network, then keeps it running until Ctrl-C: nodes that reboot are configured
+    /// again, lost heartbeats handled by each node's policy (the description's
+    /// `[nodes.NAME.supervision]`), one line per event. Exit code 1 when a mandatory node
+    /// cannot be booted (after its policy ran).
+    Run {
+        /// A network description (networks/*.toml), or one DCF per node.
+        #[arg(required = true, value_name = "FILE")]
+        files: Vec<PathBuf>,
+        /// The master's DCF: its 1F80h and 1F81h (CiA 302-2) set the supervision.
+        #[arg(long, value_name = "DCF")]
+        master_dcf: Option<PathBuf>,
+    },
     /// Drives a CiA 402 axis.
     Axis {
         /// Node id (1..=127).
@@ -258,6 +270,13 @@ async fn run(args: Args) -> Result<(), Fail> {
             }
             Some(network)
         }
+        Cmd::Run { files, master_dcf } => {
+            let mut network = cli::boot::load(files).map_err(usage)?;
+            if let Some(dcf) = master_dcf {
+                network.apply_master_dcf(dcf).map_err(|e| usage(e.to_string()))?;
+            }
+            Some(network)
+        }
         _ => None,
     };
     let Some(addr) = args.bus.clone() else { return Err(usage("--bus ADDR is required")) };
@@ -331,6 +350,10 @@ async fn run(args: Args) -> Result<(), Fail> {
             if !cli::boot::run(&bus, &network, &options, args.json).await {
                 return Err(Fail(1, "the network did not boot: see the nodes above".to_owned()));
             }
+        }
+        Cmd::Run { .. } => {
+            let network = network.unwrap_or_default();
+            cli::run::run(bus.clone(), network, args.json).await.map_err(|e| Fail(1, e))?;
         }
         Cmd::Scan { last } => scan(&bus, last.clamp(1, 127), args.json, args.timeout).await?,
         Cmd::Monitor { count, duration } => monitor(&bus, &devices, count, duration, args.json).await?,

@@ -34,8 +34,8 @@ use od_bus::CanFrame;
 use tokio::sync::broadcast;
 use tokio::time::Instant;
 
-use eds::concise::{self, Plan, Role};
 use crate::supervisor::policy::{NetworkSupervision, NodeSupervision};
+use eds::concise::{self, Plan, Role};
 use od_runtime::master::nmt::Target;
 use od_runtime::{NmtCommand, NodeId};
 

@@ -160,6 +160,26 @@ pub enum AxisErrorKind {
         /// How long it was waited for.
         timeout_ms: u64,
     },
+    /// The operation was cut short by what happened to the drive or the bus.
+    #[error("{0}")]
+    Interrupted(Interruption),
+}
+
+/// What ended a CiA 402 operation at once, rather than at its timeout.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum Interruption {
+    /// The drive sent a boot-up message: it restarted with its defaults (Switch on disabled,
+    /// its mappings gone) and does not move until the application recovers it.
+    #[error(
+        "the drive rebooted (boot-up message): it is in Switch on disabled with its defaults; recover() enables it again"
+    )]
+    Rebooted,
+    /// Its heartbeat (or guarding) was lost.
+    #[error("the drive's heartbeat was lost")]
+    Lost,
+    /// The link to the bus went down (socketcand).
+    #[error("the link to the bus went down: {0}")]
+    LinkDown(String),
 }
 
 fn describe_state(state: Option<State>, statusword: Option<u16>) -> String {

@@ -32,7 +32,7 @@ pub mod supervisor;
 pub use axis::{Axis, AxisConfig, Homing, HomingMethod, Move, UnitAxis};
 pub use boot::{BootError, BootOptions, Network, NodeReport};
 pub use bus::{Bus, Config, CyclicPdo, Tpdo};
-pub use error::{AxisError, AxisErrorKind, Error};
+pub use error::{AxisError, AxisErrorKind, Error, Interruption};
 pub use event::{EmcyTexts, Event};
 pub use node::{Node, SdoOptions, SdoValue};
 

@@ -370,7 +370,8 @@ impl Supervisor {
         let mut summary = Summary::default();
         // Subscribed before anything is sent, so that nothing after is missed.
         let mut bus_events = self.bus.events();
-        let mut runs: BTreeMap<u8, NodeRun> = self.network.nodes.iter().map(|n| (n.node_id, NodeRun::default())).collect();
+        let mut runs: BTreeMap<u8, NodeRun> =
+            self.network.nodes.iter().map(|n| (n.node_id, NodeRun::default())).collect();
         let mut tasks: JoinSet<Done> = JoinSet::new();
 
         // The first boot: keep-alive nodes found operational are left as they are.
@@ -500,7 +501,9 @@ impl Supervisor {
                 }
                 self.emit(SupervisorEvent::Recovered { node, name: self.network.nodes[i].name.clone(), state });
             }
-            Event::Link(LinkState::Down { reason, .. }) => self.emit(SupervisorEvent::Bus(BusState::LinkDown { reason })),
+            Event::Link(LinkState::Down { reason, .. }) => {
+                self.emit(SupervisorEvent::Bus(BusState::LinkDown { reason }))
+            }
             Event::Link(LinkState::Up { .. }) => {
                 self.emit(SupervisorEvent::Bus(BusState::LinkUp));
                 // What happened while the link was down is unknown: each node's configuration
@@ -561,7 +564,13 @@ impl Supervisor {
         run.booting = Some(handle);
     }
 
-    fn verified(&self, node: u8, result: Result<usize, String>, runs: &mut BTreeMap<u8, NodeRun>, tasks: &mut JoinSet<Done>) {
+    fn verified(
+        &self,
+        node: u8,
+        result: Result<usize, String>,
+        runs: &mut BTreeMap<u8, NodeRun>,
+        tasks: &mut JoinSet<Done>,
+    ) {
         let Some(i) = self.position(node) else { return };
         let n = &self.network.nodes[i];
         match result {
@@ -611,7 +620,9 @@ impl Supervisor {
                             elapsed: at.elapsed(),
                         });
                     }
-                    None => self.emit(SupervisorEvent::Booted { node: r.node_id, name: r.name.clone(), writes: r.written }),
+                    None => {
+                        self.emit(SupervisorEvent::Booted { node: r.node_id, name: r.name.clone(), writes: r.written })
+                    }
                 }
             }
             Err(e) => {
@@ -638,7 +649,10 @@ impl Supervisor {
                 }
                 // A boot after a reset without a boot-up heard (the node may still be out of
                 // reach): tried again a bounded number of times.
-                if boot_up_at.is_some() && !n.supervision.mandatory && run.checks_failed < self.network.supervision.boot_attempts {
+                if boot_up_at.is_some()
+                    && !n.supervision.mandatory
+                    && run.checks_failed < self.network.supervision.boot_attempts
+                {
                     run.checks_failed += 1;
                     if run.checks_failed < self.network.supervision.boot_attempts {
                         run.boot_check_at = Some(Instant::now() + BOOT_CHECK);
@@ -696,9 +710,13 @@ impl Supervisor {
     async fn watch(&self, n: &BootNode) {
         let s = &n.supervision;
         let watch = if s.guard_time_ms > 0 {
-            Some(Watch::Guarding { guard_time: u64::from(s.guard_time_ms) * 1000, life_time_factor: s.life_time_factor })
+            Some(Watch::Guarding {
+                guard_time: u64::from(s.guard_time_ms) * 1000,
+                life_time_factor: s.life_time_factor,
+            })
         } else {
-            policy::consumer_time_ms(s, n.plan.heartbeat_ms).map(|ms| Watch::Heartbeat { timeout: u64::from(ms) * 1000 })
+            policy::consumer_time_ms(s, n.plan.heartbeat_ms)
+                .map(|ms| Watch::Heartbeat { timeout: u64::from(ms) * 1000 })
         };
         if let Some(watch) = watch {
             let _ = self.bus.watch(n.node_id, watch, None).await;

@@ -653,7 +653,8 @@ fn fault_command(
     if line.len() > 256 {
         return Err("command longer than 256 bytes".into());
     }
-    let (node, rest) = line.split_once(char::is_whitespace).ok_or_else(|| format!("`{line}`: expected NODE COMMAND"))?;
+    let (node, rest) =
+        line.split_once(char::is_whitespace).ok_or_else(|| format!("`{line}`: expected NODE COMMAND"))?;
     let id: u8 = node.parse().map_err(|_| format!("`{node}` is not a node id"))?;
     let handle = handles.get(&id).ok_or_else(|| {
         let ids: Vec<String> = handles.keys().map(u8::to_string).collect();

@@ -49,7 +49,9 @@ impl std::str::FromStr for Fault {
     fn from_str(s: &str) -> Result<Self, String> {
         let words: Vec<&str> = s.split_whitespace().collect();
         let ms = |w: &str| -> Result<Micros, String> {
-            w.parse::<u64>().map(|m| m.saturating_mul(1000)).map_err(|_| format!("`{w}` is not a number of milliseconds"))
+            w.parse::<u64>()
+                .map(|m| m.saturating_mul(1000))
+                .map_err(|_| format!("`{w}` is not a number of milliseconds"))
         };
         let code = |w: &str| -> Result<u16, String> {
             let t = w.trim_start_matches("0x").trim_end_matches('h');
@@ -63,9 +65,9 @@ impl std::str::FromStr for Fault {
             ["fault", c] => Ok(Fault::Fault { code: code(c)?, sticky: false }),
             ["fault", c, "sticky"] => Ok(Fault::Fault { code: code(c)?, sticky: true }),
             ["clear"] => Ok(Fault::Clear),
-            _ => Err(format!(
-                "`{s}`: expected `power-cycle [OFF_MS]`, `silence MS`, `fault [CODE] [sticky]` or `clear`"
-            )),
+            _ => {
+                Err(format!("`{s}`: expected `power-cycle [OFF_MS]`, `silence MS`, `fault [CODE] [sticky]` or `clear`"))
+            }
         }
     }
 }

@@ -469,9 +469,12 @@ impl<'a> Reader<'a> {
             return Some(n.value);
         }
         self.push(
-            Diagnostic::error(codes::BAD_VALUE, format!("{what} is {}, outside {}..={}", n.value, range.start(), range.end()))
-                .at(self.snippet(n.span))
-                .help(format!("give {what} a value from {} to {}", range.start(), range.end())),
+            Diagnostic::error(
+                codes::BAD_VALUE,
+                format!("{what} is {}, outside {}..={}", n.value, range.start(), range.end()),
+            )
+            .at(self.snippet(n.span))
+            .help(format!("give {what} a value from {} to {}", range.start(), range.end())),
         );
         None
     }
@@ -542,11 +545,14 @@ impl<'a> Reader<'a> {
                     }
                 }
                 "heartbeat_timeout_ms" => {
-                    n.heartbeat_timeout_ms =
-                        self.bounded(v, "`heartbeat_timeout_ms`", 0..=65_535).map(|x| x as u32).or(n.heartbeat_timeout_ms)
+                    n.heartbeat_timeout_ms = self
+                        .bounded(v, "`heartbeat_timeout_ms`", 0..=65_535)
+                        .map(|x| x as u32)
+                        .or(n.heartbeat_timeout_ms)
                 }
                 "guard_time_ms" => {
-                    n.guard_time_ms = self.bounded(v, "`guard_time_ms`", 0..=65_535).map_or(n.guard_time_ms, |x| x as u16)
+                    n.guard_time_ms =
+                        self.bounded(v, "`guard_time_ms`", 0..=65_535).map_or(n.guard_time_ms, |x| x as u16)
                 }
                 "life_time_factor" => {
                     n.life_time_factor =
@@ -566,7 +572,10 @@ impl<'a> Reader<'a> {
             self.push(
                 Diagnostic::error(
                     codes::BAD_VALUE,
-                    format!("node `{node_name}`: `on_lost = \"{}\"` acts on every node, which only a mandatory node may", n.on_lost.name()),
+                    format!(
+                        "node `{node_name}`: `on_lost = \"{}\"` acts on every node, which only a mandatory node may",
+                        n.on_lost.name()
+                    ),
                 )
                 .at(self.snippet(span))
                 .help("add `mandatory = true`, or use `\"reset_node\"` or `\"report\"`"),

@@ -5,5 +5,6 @@ pub mod boot;
 pub mod decode;
 pub mod device;
 pub mod object;
+pub mod run;
 pub mod units;
 pub mod value;

@@ -143,7 +143,6 @@ impl NetworkSupervision {
     }
 }
 
-
 #[cfg(feature = "network-description")]
 impl From<od_codegen::network::desc::FailureAction> for FailureAction {
     fn from(a: od_codegen::network::desc::FailureAction) -> Self {

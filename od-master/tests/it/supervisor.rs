@@ -135,8 +135,7 @@ async fn a_power_cycled_drive_is_configured_again_and_the_others_miss_no_sync() 
     rig.faults[1].inject(Fault::PowerCycle { off: 5_000 });
     let (rebooted, _) = r.expect(Duration::from_secs(1), |e| matches!(e, SupervisorEvent::Rebooted { .. })).await;
     assert_eq!(rebooted, SupervisorEvent::Rebooted { node: 3, name: "y_axis".into() });
-    let (done, between) =
-        r.expect(Duration::from_secs(2), |e| matches!(e, SupervisorEvent::Reconfigured { .. })).await;
+    let (done, between) = r.expect(Duration::from_secs(2), |e| matches!(e, SupervisorEvent::Reconfigured { .. })).await;
     assert!(between.is_empty(), "{between:#?}");
     let SupervisorEvent::Reconfigured { node: 3, writes, elapsed, .. } = done else { panic!("{done:?}") };
     assert_eq!(writes, network.nodes[1].plan.writes.len());
@@ -233,8 +232,10 @@ async fn a_wrong_mandatory_device_is_reset_a_bounded_number_of_times() {
     let (rig, mut r, failed) = wrong_device("reset_node").await;
     check_identity_failure(&failed);
     let (_, seen) = r.expect(Duration::from_secs(5), |e| matches!(e, SupervisorEvent::MandatoryFailed { .. })).await;
-    let acted: Vec<Action> =
-        seen.iter().filter_map(|e| if let SupervisorEvent::Acted { action, .. } = e { Some(*action) } else { None }).collect();
+    let acted: Vec<Action> = seen
+        .iter()
+        .filter_map(|e| if let SupervisorEvent::Acted { action, .. } = e { Some(*action) } else { None })
+        .collect();
     assert_eq!(acted, [Action::ResetNode, Action::ResetNode, Action::GiveUp], "{seen:#?}");
     let reboots = seen.iter().filter(|e| matches!(e, SupervisorEvent::Rebooted { node: 2, .. })).count();
     assert_eq!(reboots, 2);
@@ -251,7 +252,10 @@ async fn a_wrong_mandatory_device_stops_all_nodes() {
     let (rig, mut r, failed) = wrong_device("stop_all").await;
     check_identity_failure(&failed);
     let (_, seen) = r.expect(Duration::from_secs(1), |e| matches!(e, SupervisorEvent::MandatoryFailed { .. })).await;
-    assert!(seen.iter().any(|e| matches!(e, SupervisorEvent::Acted { node: 2, action: Action::StopAll, .. })), "{seen:#?}");
+    assert!(
+        seen.iter().any(|e| matches!(e, SupervisorEvent::Acted { node: 2, action: Action::StopAll, .. })),
+        "{seen:#?}"
+    );
     pass(Duration::from_millis(10)).await;
     for i in 0..3 {
         assert_eq!(rig.nmt_state(i), NmtState::Stopped, "node at {i}");
@@ -274,7 +278,8 @@ async fn a_wrong_mandatory_device_resets_all_nodes_a_bounded_number_of_times() {
         let reboots = seen.iter().filter(|e| matches!(e, SupervisorEvent::Rebooted { node, .. } if *node == n)).count();
         assert_eq!(reboots, 2, "node {n}: {seen:#?}");
         let last = seen.iter().rposition(|e| matches!(e, SupervisorEvent::Rebooted { node, .. } if *node == n));
-        let configured = seen.iter().rposition(|e| matches!(e, SupervisorEvent::Reconfigured { node, .. } if *node == n));
+        let configured =
+            seen.iter().rposition(|e| matches!(e, SupervisorEvent::Reconfigured { node, .. } if *node == n));
         assert!(configured > last, "node {n}: {seen:#?}");
     }
     assert_eq!(rig.nmt_state(1), NmtState::Operational);
@@ -300,7 +305,8 @@ async fn a_silenced_heartbeat_is_lost_then_the_node_reset_and_configured_again()
     assert!(matches!(acted, SupervisorEvent::Acted { node: 3, action: Action::ResetNode, .. }), "{acted:?}");
     // Its boot-up is silenced too: it is booted anyway a second after the reset, again until
     // its heartbeat gets through.
-    let (done, _) = r.expect(Duration::from_secs(4), |e| matches!(e, SupervisorEvent::Reconfigured { node: 3, .. })).await;
+    let (done, _) =
+        r.expect(Duration::from_secs(4), |e| matches!(e, SupervisorEvent::Reconfigured { node: 3, .. })).await;
     assert!(matches!(done, SupervisorEvent::Reconfigured { writes: 28, .. }), "{done:?}");
     assert_eq!(rig.nmt_state(1), NmtState::Operational);
     let later = r.during(Duration::from_secs(1)).await;
@@ -342,4 +348,165 @@ fn supervision_keys_are_read_and_checked() {
     assert!(e.contains("`on_lost` is `reset_everything`, not an action"), "{e}");
     assert!(e.contains("did you mean `mandatory`?"), "{e}");
     assert!(e.contains("acts on every node, which only a mandatory node may"), "{e}");
+}
+
+// The CiA 402 side: operations that end at once, explicit recovery, the opt-in policy.
+
+use od_master::axis::{AxisReport, RecoveryPolicy, Trouble, mode};
+use od_master::{Axis, AxisErrorKind, Homing, Interruption, Move, State};
+
+/// The kind of an axis error, looking through an SDO error that ended because of a reboot.
+fn interrupted_by_reboot(e: &Error) -> bool {
+    match e {
+        Error::Axis(a) => match &a.kind {
+            AxisErrorKind::Interrupted(Interruption::Rebooted) => true,
+            AxisErrorKind::Sdo(inner) => matches!(**inner, Error::Rebooted { .. }),
+            _ => false,
+        },
+        Error::Rebooted { .. } => true,
+        _ => false,
+    }
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_move_on_a_drive_that_reboots_ends_at_once_and_the_drive_stays_still() {
+    let rig = rig(&[(DeviceKind::Drvi, 2)]);
+    pass(Duration::from_millis(5)).await;
+    let axis = Axis::new(rig.bus.node(2).unwrap());
+    axis.home(&Homing::method(37)).await.unwrap();
+    // A long, slow move: 100 turns at 60 rpm.
+    let m = Move { velocity: Some(6_000), acceleration: Some(6_000), deceleration: Some(6_000), ..Move::default() };
+    let mover = tokio::spawn(async move {
+        let result = axis.move_to(3_600_000, &m).await;
+        (axis, result)
+    });
+    pass(Duration::from_millis(300)).await;
+    let cut = tokio::time::Instant::now();
+    rig.faults[0].inject(Fault::PowerCycle { off: 2_000 });
+    let (axis, result) = mover.await.unwrap();
+    assert!(cut.elapsed() < Duration::from_millis(50), "ended {:?} after the power cycle", cut.elapsed());
+    let e = result.unwrap_err();
+    assert!(interrupted_by_reboot(&e), "{e}");
+    assert!(e.to_string().starts_with("drive 2 ("), "{e}");
+    // It does not move by itself (once a free motor has coasted to a stop: its power stage
+    // went off with the power cycle).
+    pass(Duration::from_secs(2)).await;
+    let here = axis.position().await.unwrap();
+    pass(Duration::from_millis(300)).await;
+    assert_eq!(axis.position().await.unwrap(), here);
+    assert_eq!(axis.state().await.unwrap(), Some(State::SwitchOnDisabled));
+    // Until recovered: then it moves again.
+    axis.recover(mode::PROFILE_POSITION).await.unwrap();
+    assert_eq!(axis.state().await.unwrap(), Some(State::OperationEnabled));
+    let m = Move { velocity: Some(6_000), acceleration: Some(6_000), deceleration: Some(6_000), ..Move::default() };
+    let at = axis.move_to(here + 9_000, &m).await.unwrap();
+    assert_eq!(at, here + 9_000);
+}
+
+#[tokio::test(start_paused = true)]
+async fn recover_resets_a_fault_on_a_rising_edge_and_enables() {
+    let rig = rig(&[(DeviceKind::Drvi, 2)]);
+    pass(Duration::from_millis(5)).await;
+    let axis = Axis::new(rig.bus.node(2).unwrap());
+    axis.enable().await.unwrap();
+    rig.faults[0].inject(Fault::Fault { code: 0x5530, sticky: false });
+    pass(Duration::from_millis(50)).await;
+    assert_eq!(axis.state().await.unwrap(), Some(State::Fault));
+    let mut wire = rig.sim.lock().unwrap().endpoint();
+    axis.recover(mode::PROFILE_POSITION).await.unwrap();
+    assert_eq!(axis.state().await.unwrap(), Some(State::OperationEnabled));
+    // The controlword writes of the reset: bit 7 low, then high.
+    let mut controlwords = Vec::new();
+    while let Ok(Some(f)) = wire.try_recv() {
+        if f.id() == 0x602 && f.data()[..4] == [0x2B, 0x40, 0x60, 0x00] {
+            controlwords.push(u16::from_le_bytes([f.data()[4], f.data()[5]]));
+        }
+    }
+    let edge = controlwords.windows(2).position(|w| w == [0x0000, 0x0080]);
+    assert!(edge.is_some(), "{controlwords:04X?}");
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_fault_that_stays_is_reset_a_bounded_number_of_times_then_reported() {
+    let rig = rig(&[(DeviceKind::Drvi, 2)]);
+    pass(Duration::from_millis(5)).await;
+    let axis = Arc::new(Axis::new(rig.bus.node(2).unwrap()));
+    axis.enable().await.unwrap();
+    let policy = RecoveryPolicy::FaultReset { attempts: 3, backoff: Duration::from_millis(10) };
+    let mut reports = Arc::clone(&axis).keep(policy, mode::PROFILE_POSITION);
+    rig.faults[0].inject(Fault::Fault { code: 0x5530, sticky: true });
+    let mut seen = Vec::new();
+    loop {
+        let report = tokio::time::timeout(Duration::from_secs(20), reports.recv()).await.expect("a report").unwrap();
+        let end = matches!(report, AxisReport::GaveUp { .. });
+        seen.push(report);
+        if end {
+            break;
+        }
+    }
+    let failed = seen.iter().filter(|r| matches!(r, AxisReport::AttemptFailed { trouble: Trouble::Fault, .. })).count();
+    assert_eq!(failed, 3, "{seen:#?}");
+    assert!(matches!(seen.last(), Some(AxisReport::GaveUp { trouble: Trouble::Fault, attempts: 3 })), "{seen:#?}");
+    // Never loops: nothing more.
+    assert!(tokio::time::timeout(Duration::from_secs(2), reports.recv()).await.is_err());
+    assert_eq!(axis.state().await.unwrap(), Some(State::Fault));
+    // The cause gone, the application recovers it.
+    rig.faults[0].inject(Fault::Clear);
+    axis.recover(mode::PROFILE_POSITION).await.unwrap();
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_csp_stream_to_a_drive_that_rebooted_stops() {
+    let rig = rig(&[(DeviceKind::Akd, 4)]);
+    pass(Duration::from_millis(5)).await;
+    let axis = Axis::new(rig.bus.node(4).unwrap());
+    axis.node().write_idempotent(0x6092, 1, 10_000u32).await.unwrap();
+    axis.home(&Homing::method(35)).await.unwrap();
+    rig.bus.start_sync(Duration::from_millis(1), 0).await.unwrap();
+    let mut csp = axis.cyclic_position(4, 0x504).await.unwrap();
+    let start = axis.position().await.unwrap();
+    for k in 1..=50 {
+        csp.send(start + 5 * k).await.unwrap();
+    }
+    rig.faults[0].inject(Fault::PowerCycle { off: 2_000 });
+    let mut ended = None;
+    for k in 51..=200 {
+        if let Err(e) = csp.send(start + 5 * k).await {
+            ended = Some(e);
+            break;
+        }
+    }
+    let e = ended.expect("the stream stops");
+    assert!(e.to_string().contains("the drive rebooted"), "{e}");
+    assert_eq!(csp.stopped(), Some(&Interruption::Rebooted));
+    // No set-point goes out any more.
+    let mut wire = rig.sim.lock().unwrap().endpoint();
+    pass(Duration::from_millis(20)).await;
+    while let Ok(Some(f)) = wire.try_recv() {
+        assert_ne!(f.id(), 0x504, "a set-point after the stream stopped");
+    }
+    assert!(csp.send(0).await.is_err());
+}
+
+#[tokio::test(start_paused = true)]
+async fn re_enable_after_reboot_brings_the_drive_back_once_reconfigured() {
+    let rig = rig(&EXAMPLE);
+    pass(Duration::from_millis(10)).await;
+    let mut r = supervise(&rig.bus, example_with(""));
+    boot_all(&mut r).await;
+    let x = Arc::new(Axis::new(rig.bus.node(2).unwrap()));
+    let y = Axis::new(rig.bus.node(3).unwrap());
+    x.enable().await.unwrap();
+    y.enable().await.unwrap();
+    let mut reports = Arc::clone(&x).keep(RecoveryPolicy::ReenableAfterReboot, mode::PROFILE_POSITION);
+    rig.faults[0].inject(Fault::PowerCycle { off: 2_000 });
+    rig.faults[1].inject(Fault::PowerCycle { off: 2_000 });
+    let report = tokio::time::timeout(Duration::from_secs(2), reports.recv()).await.unwrap().unwrap();
+    assert!(matches!(report, AxisReport::Recovered { trouble: Trouble::Rebooted, attempt: 1 }), "{report:?}");
+    assert_eq!(x.state().await.unwrap(), Some(State::OperationEnabled));
+    // y has no policy: configured again by the supervisor, but left disabled.
+    r.expect(Duration::from_secs(1), |e| matches!(e, SupervisorEvent::Reconfigured { node: 3, .. })).await;
+    pass(Duration::from_millis(100)).await;
+    assert_eq!(y.state().await.unwrap(), Some(State::SwitchOnDisabled));
+    r.stop().await;
 }
