@@ -3,3 +3,4 @@
 
 mod boot_cli;
 mod cli;
+mod run_cli;

@@ -510,3 +510,62 @@ async fn re_enable_after_reboot_brings_the_drive_back_once_reconfigured() {
     assert_eq!(y.state().await.unwrap(), Some(State::SwitchOnDisabled));
     r.stop().await;
 }
+
+// Over TCP: the hub restarted while the network runs.
+
+/// Drives on a hub at `addr`, in real time, until `stop`.
+fn hub_drives(addr: &str) -> (od_bus::Hub, Arc<std::sync::atomic::AtomicBool>, Vec<std::thread::JoinHandle<()>>) {
+    let hub = od_bus::Hub::bind(addr, od_bus::HubConfig::default().quiet()).expect("bind the hub");
+    let stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let threads = EXAMPLE
+        .iter()
+        .map(|&(kind, id)| {
+            let mut ep = hub.attach("can0").unwrap();
+            let stop = Arc::clone(&stop);
+            let mut n = node(kind, id);
+            std::thread::spawn(move || {
+                let _ = drive::node::run(&mut *n, &mut ep, &drive::node::MonotonicClock::new(), &stop);
+            })
+        })
+        .collect();
+    (hub, stop, threads)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_hub_restarted_link_down_and_up_and_no_node_left_unconfigured() {
+    let (hub, stop, threads) = hub_drives("127.0.0.1:0");
+    let addr = hub.local_addr();
+    let bus = Bus::open(&format!("socketcand://{addr}/can0"), Config::default()).await.unwrap();
+    let network = example_with("");
+    let mut r = supervise(&bus, network.clone());
+    boot_all(&mut r).await;
+    // The hub and its drives go away (the drives come back with their defaults).
+    stop.store(true, std::sync::atomic::Ordering::SeqCst);
+    hub.stop();
+    threads.into_iter().for_each(|t| t.join().unwrap());
+    r.expect(Duration::from_secs(5), |e| matches!(e, SupervisorEvent::Bus(od_master::supervisor::BusState::LinkDown { .. })))
+        .await;
+    let (hub, stop, threads) = hub_drives(&addr.to_string());
+    r.expect(Duration::from_secs(10), |e| matches!(e, SupervisorEvent::Bus(od_master::supervisor::BusState::LinkUp)))
+        .await;
+    let mut configured = std::collections::BTreeSet::new();
+    let mut seen = Vec::new();
+    while configured.len() < 3 {
+        let (e, before) = r
+            .expect(Duration::from_secs(10), |e| {
+                matches!(e, SupervisorEvent::Reconfigured { .. } | SupervisorEvent::Verified { .. })
+            })
+            .await;
+        seen.extend(before);
+        if let SupervisorEvent::Reconfigured { node, .. } | SupervisorEvent::Verified { node, .. } = e {
+            configured.insert(node);
+        }
+    }
+    for n in &network.nodes {
+        od_master::supervisor::verify(&bus, n).await.unwrap_or_else(|e| panic!("{}: {e}; {seen:#?}", n.name));
+    }
+    r.stop().await;
+    stop.store(true, std::sync::atomic::Ordering::SeqCst);
+    hub.stop();
+    threads.into_iter().for_each(|t| t.join().unwrap());
+}
