@@ -215,7 +215,9 @@ async fn main() {
             soak(bus, injector, num(3, 600.0) as u64, num(4, 10.0), num(5, 30.0)).await;
         }
         _ => {
-            eprintln!("usage: recovery mem [ROUNDS] | hub ADDR SOCKET [ROUNDS] | soak ADDR SOCKET SECONDS [MIN_S MAX_S]");
+            eprintln!(
+                "usage: recovery mem [ROUNDS] | hub ADDR SOCKET [ROUNDS] | soak ADDR SOCKET SECONDS [MIN_S MAX_S]"
+            );
             std::process::exit(2);
         }
     }

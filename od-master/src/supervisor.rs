@@ -625,6 +625,9 @@ impl Supervisor {
                     }
                 }
             }
+            // A boot cut short by another boot-up is no failure of the node: the boot-up's own
+            // boot follows (and reports).
+            Err(boot::BootError::Bus { error: crate::Error::Rebooted { .. }, .. }) => {}
             Err(e) => {
                 summary.boot_failures += 1;
                 run.failures = run.failures.saturating_add(1);
@@ -641,12 +644,6 @@ impl Supervisor {
                     reason: policy::reason_letter(e),
                     message: e.to_string(),
                 });
-                // A boot cut short by another boot-up is no failure of the node: the boot-up's
-                // own boot follows.
-                if matches!(e, boot::BootError::Bus { error: crate::Error::Rebooted { .. }, .. }) {
-                    run.failures -= 1;
-                    return;
-                }
                 // A boot after a reset without a boot-up heard (the node may still be out of
                 // reach): tried again a bounded number of times.
                 if boot_up_at.is_some()

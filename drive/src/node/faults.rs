@@ -167,6 +167,10 @@ impl AnyNode for Faulty {
         if self.handle.pending() {
             return 0;
         }
+        if let Some(on) = self.off_until {
+            // Off: nothing runs until the power is back.
+            return on;
+        }
         let mut next = self.inner.next_deadline();
         for t in [self.off_until, self.silent_until].into_iter().flatten() {
             next = next.min(t);
@@ -204,5 +208,33 @@ impl AnyNode for Faulty {
 
     fn cia402_state(&self) -> Option<od_runtime::cia402::State> {
         self.inner.cia402_state()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fault_commands() {
+        let table: &[(&str, Result<Fault, &str>)] = &[
+            ("power-cycle", Ok(Fault::PowerCycle { off: 10_000 })),
+            ("power-cycle 5", Ok(Fault::PowerCycle { off: 5_000 })),
+            ("silence 2000", Ok(Fault::Silence { duration: 2_000_000 })),
+            ("fault", Ok(Fault::Fault { code: 0x5530, sticky: false })),
+            ("fault 7500h sticky", Ok(Fault::Fault { code: 0x7500, sticky: true })),
+            ("fault 0x2310", Ok(Fault::Fault { code: 0x2310, sticky: false })),
+            ("clear", Ok(Fault::Clear)),
+            ("silence", Err("`silence`: expected")),
+            ("silence soon", Err("`soon` is not a number of milliseconds")),
+            ("fault 12345", Err("`12345` is not a 16-bit error code")),
+        ];
+        for (text, want) in table {
+            match (text.parse::<Fault>(), want) {
+                (Ok(got), Ok(want)) => assert_eq!(got, *want, "{text}"),
+                (Err(got), Err(want)) => assert!(got.starts_with(want), "{text}: {got}"),
+                (got, _) => panic!("{text}: {got:?}"),
+            }
+        }
     }
 }

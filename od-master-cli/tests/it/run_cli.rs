@@ -28,7 +28,10 @@ struct Drive {
 impl Drive {
     fn start(hub: &Hub, kind: DeviceKind, id: u8) -> Self {
         let node = kind
-            .build(&drive::node::NodeConfig { node_id: Some(id), ..Default::default() }, &drive::drives::DeviceApps::new())
+            .build(
+                &drive::node::NodeConfig { node_id: Some(id), ..Default::default() },
+                &drive::drives::DeviceApps::new(),
+            )
             .expect("a simulated node");
         let (mut node, faults) = Faulty::new(node);
         let mut ep = hub.attach("can0").unwrap();

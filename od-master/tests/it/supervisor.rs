@@ -395,12 +395,13 @@ async fn a_move_on_a_drive_that_reboots_ends_at_once_and_the_drive_stays_still()
     pass(Duration::from_millis(300)).await;
     assert_eq!(axis.position().await.unwrap(), here);
     assert_eq!(axis.state().await.unwrap(), Some(State::SwitchOnDisabled));
-    // Until recovered: then it moves again.
+    // Until recovered: then, homed again (the reboot lost its reference), it moves again.
     axis.recover(mode::PROFILE_POSITION).await.unwrap();
     assert_eq!(axis.state().await.unwrap(), Some(State::OperationEnabled));
+    let home = axis.home(&Homing::method(37)).await.unwrap();
     let m = Move { velocity: Some(6_000), acceleration: Some(6_000), deceleration: Some(6_000), ..Move::default() };
-    let at = axis.move_to(here + 9_000, &m).await.unwrap();
-    assert_eq!(at, here + 9_000);
+    let at = axis.move_to(home + 9_000, &m).await.unwrap();
+    assert_eq!(at, home + 9_000);
 }
 
 #[tokio::test(start_paused = true)]
@@ -543,8 +544,10 @@ async fn the_hub_restarted_link_down_and_up_and_no_node_left_unconfigured() {
     stop.store(true, std::sync::atomic::Ordering::SeqCst);
     hub.stop();
     threads.into_iter().for_each(|t| t.join().unwrap());
-    r.expect(Duration::from_secs(5), |e| matches!(e, SupervisorEvent::Bus(od_master::supervisor::BusState::LinkDown { .. })))
-        .await;
+    r.expect(Duration::from_secs(5), |e| {
+        matches!(e, SupervisorEvent::Bus(od_master::supervisor::BusState::LinkDown { .. }))
+    })
+    .await;
     let (hub, stop, threads) = hub_drives(&addr.to_string());
     r.expect(Duration::from_secs(10), |e| matches!(e, SupervisorEvent::Bus(od_master::supervisor::BusState::LinkUp)))
         .await;
