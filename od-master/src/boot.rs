@@ -355,6 +355,8 @@ pub struct NodeReport {
     pub planned: usize,
     /// Whether an NMT start was sent to it (or to all nodes).
     pub started: bool,
+    /// When the NMT start went out (before its heartbeat confirmed it), if it did.
+    pub started_at: Option<Instant>,
     /// Configured, or why not.
     pub result: Result<(), BootError>,
 }
@@ -396,6 +398,7 @@ pub(crate) async fn boot_nodes(
                 written: 0,
                 planned: node.plan.writes.len(),
                 started: false,
+                started_at: None,
                 result: Err(BootError::Bus { name: node.name.clone(), stage: Stage::Configure, error: Error::Closed }),
             }));
         }
@@ -468,7 +471,11 @@ async fn start(bus: &Bus, reports: &mut [NodeReport], wanted: &[bool], all_at_on
         && reports.iter().all(|r| r.result.is_ok())
         && bus.nmt(NmtCommand::Start, Target::All).await.is_ok()
     {
-        reports.iter_mut().for_each(|r| r.started = true);
+        let at = Instant::now();
+        reports.iter_mut().for_each(|r| {
+            r.started = true;
+            r.started_at = Some(at);
+        });
         return;
     }
     // Some node failed (or the command to all could not be sent): each configured node on its
@@ -476,7 +483,10 @@ async fn start(bus: &Bus, reports: &mut [NodeReport], wanted: &[bool], all_at_on
     for (r, _) in reports.iter_mut().zip(wanted).filter(|(r, w)| r.result.is_ok() && **w) {
         let Some(id) = NodeId::new(r.node_id) else { continue };
         match bus.nmt(NmtCommand::Start, Target::Node(id)).await {
-            Ok(()) => r.started = true,
+            Ok(()) => {
+                r.started = true;
+                r.started_at = Some(Instant::now());
+            }
             Err(error) => r.result = Err(BootError::Bus { name: r.name.clone(), stage: Stage::Nmt, error }),
         }
     }
@@ -490,6 +500,7 @@ async fn configure(bus: &Bus, boot: &BootNode) -> NodeReport {
         written: 0,
         planned: boot.plan.writes.len(),
         started: false,
+        started_at: None,
         result: Ok(()),
     };
     report.result = run(bus, boot, &mut report.written).await;

@@ -177,6 +177,9 @@ pub enum SupervisorEvent {
         /// From its boot-up message to its heartbeat saying Operational (or to its last write
         /// when it is not started by the master or produces no heartbeat).
         elapsed: Duration,
+        /// From its boot-up message to the NMT start that made it Operational (configured and
+        /// started; `elapsed` adds the wait for its next heartbeat), if it was started.
+        started: Option<Duration>,
     },
     /// The node's boot process failed; the node was not started.
     BootFailed {
@@ -249,11 +252,13 @@ impl std::fmt::Display for SupervisorEvent {
                 write!(f, "{name} (node {node}): operational already, kept alive (not configured again)")
             }
             SupervisorEvent::Rebooted { node, name } => write!(f, "{name} (node {node}): rebooted (boot-up message)"),
-            SupervisorEvent::Reconfigured { node, name, writes, elapsed } => write!(
-                f,
-                "{name} (node {node}): reconfigured, {writes} writes, {:.1} ms from boot-up to running",
-                elapsed.as_secs_f64() * 1e3
-            ),
+            SupervisorEvent::Reconfigured { node, name, writes, elapsed, started } => {
+                write!(f, "{name} (node {node}): reconfigured, {writes} writes")?;
+                if let Some(s) = started {
+                    write!(f, ", started {:.1} ms after its boot-up", s.as_secs_f64() * 1e3)?;
+                }
+                write!(f, ", running (heartbeat) after {:.1} ms", elapsed.as_secs_f64() * 1e3)
+            }
             SupervisorEvent::BootFailed { node, name, step, reason, message, .. } => {
                 write!(f, "{name} (node {node}): boot failed {step}")?;
                 if let Some(r) = reason {
@@ -553,6 +558,7 @@ impl Supervisor {
                 written: 0,
                 planned: node.plan.writes.len(),
                 started: false,
+                started_at: None,
                 result: Err(boot::BootError::Bus {
                     name: node.name.clone(),
                     stage: Stage::Configure,
@@ -618,6 +624,7 @@ impl Supervisor {
                             name: r.name.clone(),
                             writes: r.written,
                             elapsed: at.elapsed(),
+                            started: r.started_at.map(|s| s.saturating_duration_since(at)),
                         });
                     }
                     None => {

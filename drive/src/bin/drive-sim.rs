@@ -582,12 +582,12 @@ fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
     if failed.load(Ordering::SeqCst) { Err("a device stopped on a bus error".into()) } else { Ok(()) }
 }
 
+/// Devices by name, as `run` starts them.
+type Named = Vec<(String, Box<dyn AnyNode>)>;
+
 /// Wraps every device in a fault injector and serves `path` for commands to them.
 #[cfg(unix)]
-fn faults_on_demand(
-    path: &std::path::Path,
-    nodes: Vec<(String, Box<dyn AnyNode>)>,
-) -> Result<Vec<(String, Box<dyn AnyNode>)>, String> {
+fn faults_on_demand(path: &std::path::Path, nodes: Named) -> Result<Named, String> {
     use std::io::{BufRead, BufReader, Read};
     use std::os::unix::fs::FileTypeExt;
     use std::os::unix::net::UnixListener;
@@ -637,10 +637,7 @@ fn faults_on_demand(
 }
 
 #[cfg(not(unix))]
-fn faults_on_demand(
-    path: &std::path::Path,
-    _nodes: Vec<(String, Box<dyn AnyNode>)>,
-) -> Result<Vec<(String, Box<dyn AnyNode>)>, String> {
+fn faults_on_demand(path: &std::path::Path, _nodes: Named) -> Result<Named, String> {
     Err(format!("--control {}: control sockets are Unix sockets; not available here", path.display()))
 }
 

@@ -62,9 +62,10 @@ pub fn to_json(event: &SupervisorEvent) -> serde_json::Value {
         }
         SupervisorEvent::KeptAlive { node, name } => json!({ "event": "kept_alive", "node": node, "name": name }),
         SupervisorEvent::Rebooted { node, name } => json!({ "event": "rebooted", "node": node, "name": name }),
-        SupervisorEvent::Reconfigured { node, name, writes, elapsed } => json!({
+        SupervisorEvent::Reconfigured { node, name, writes, elapsed, started } => json!({
             "event": "reconfigured", "node": node, "name": name, "writes": writes,
             "elapsed_ms": elapsed.as_secs_f64() * 1e3,
+            "started_ms": started.map(|s| s.as_secs_f64() * 1e3),
         }),
         SupervisorEvent::BootFailed { node, name, step, object, reason, message } => json!({
             "event": "boot_failed", "node": node, "name": name, "step": step.to_string(),

@@ -102,7 +102,7 @@ impl Supervising {
     }
 
     /// SIGINT (Ctrl-C), then its exit code and standard error.
-    fn interrupt(mut self) -> (i32, String) {
+    fn interrupt(self) -> (i32, String) {
         let _ = Command::new("kill").args(["-INT", &self.child.id().to_string()]).status();
         self.finish()
     }

@@ -137,7 +137,8 @@ async fn a_power_cycled_drive_is_configured_again_and_the_others_miss_no_sync() 
     assert_eq!(rebooted, SupervisorEvent::Rebooted { node: 3, name: "y_axis".into() });
     let (done, between) = r.expect(Duration::from_secs(2), |e| matches!(e, SupervisorEvent::Reconfigured { .. })).await;
     assert!(between.is_empty(), "{between:#?}");
-    let SupervisorEvent::Reconfigured { node: 3, writes, elapsed, .. } = done else { panic!("{done:?}") };
+    let SupervisorEvent::Reconfigured { node: 3, writes, elapsed, started, .. } = done else { panic!("{done:?}") };
+    assert!(started.is_some_and(|s| s <= elapsed), "{started:?} {elapsed:?}");
     assert_eq!(writes, network.nodes[1].plan.writes.len());
     assert!(elapsed < Duration::from_millis(400), "{elapsed:?}");
     assert_eq!(rig.nmt_state(1), NmtState::Operational);
