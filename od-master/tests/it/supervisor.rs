@@ -310,8 +310,10 @@ async fn a_silenced_heartbeat_is_lost_then_the_node_reset_and_configured_again()
         r.expect(Duration::from_secs(4), |e| matches!(e, SupervisorEvent::Reconfigured { node: 3, .. })).await;
     assert!(matches!(done, SupervisorEvent::Reconfigured { writes: 28, .. }), "{done:?}");
     assert_eq!(rig.nmt_state(1), NmtState::Operational);
+    // Then quiet (its heartbeat, back, may still be reported as recovered: the same frame
+    // confirms the boot and ends the loss).
     let later = r.during(Duration::from_secs(1)).await;
-    assert!(later.is_empty(), "{later:#?}");
+    assert!(later.iter().all(|e| matches!(e, SupervisorEvent::Recovered { node: 3, .. })), "{later:#?}");
     r.stop().await;
 }
 
