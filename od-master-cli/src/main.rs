@@ -127,6 +127,18 @@ enum Cmd {
     /// Commissioning with LSS (CiA 305): scan, set-id, set-bitrate, store, inquire,
     /// unconfigure-all, assign.
     Lss(cli::lss::LssArgs),
+    /// Boots a network, then keeps it running until Ctrl-C: nodes that reboot are configured
+    /// again, lost heartbeats handled by each node's policy (the description's
+    /// `[nodes.NAME.supervision]`), one line per event. Exit code 1 when a mandatory node
+    /// cannot be booted (after its policy ran).
+    Run {
+        /// A network description (networks/*.toml), or one DCF per node.
+        #[arg(required = true, value_name = "FILE")]
+        files: Vec<PathBuf>,
+        /// The master's DCF: its 1F80h and 1F81h (CiA 302-2) set the supervision.
+        #[arg(long, value_name = "DCF")]
+        master_dcf: Option<PathBuf>,
+    },
     /// Drives a CiA 402 axis.
     Axis {
         /// Node id (1..=127).
@@ -267,6 +279,13 @@ async fn run(args: Args) -> Result<(), Fail> {
             }
             Some(network)
         }
+        Cmd::Run { files, master_dcf } => {
+            let mut network = cli::boot::load(files).map_err(usage)?;
+            if let Some(dcf) = master_dcf {
+                network.apply_master_dcf(dcf).map_err(|e| usage(e.to_string()))?;
+            }
+            Some(network)
+        }
         _ => None,
     };
     let Some(addr) = args.bus.clone() else { return Err(usage("--bus ADDR is required")) };
@@ -352,6 +371,10 @@ async fn run(args: Args) -> Result<(), Fail> {
             cli::lss::run(&bus, lss, eds, args.json).await.map_err(|(code, msg)| Fail(code, msg))?;
         }
         Cmd::Scan { last, retries } => scan(&bus, last.clamp(1, 127), args.json, args.timeout, retries).await?,
+        Cmd::Run { .. } => {
+            let network = network.unwrap_or_default();
+            cli::run::run(bus.clone(), network, args.json).await.map_err(|e| Fail(1, e))?;
+        }
         Cmd::Monitor { count, duration } => monitor(&bus, &devices, count, duration, args.json).await?,
         Cmd::Axis { node, action } => {
             let node = node_id(&node.to_string())?;

@@ -24,11 +24,14 @@ use tokio::sync::{broadcast, watch};
 use tokio::time::Instant;
 
 use crate::bus::CyclicPdo;
-use crate::error::{AxisError, AxisErrorKind, Error, Impossible, StopReason};
+use crate::error::{AxisError, AxisErrorKind, Error, Impossible, Interruption, StopReason};
 use crate::event::Event;
 use crate::node::{Node, SdoValue};
 use crate::register::StatusRegister;
 use crate::remote::{Quantity, Scaling, UnitError, dim};
+use od_bus::tokio::LinkState;
+use od_runtime::master::NodeEvent;
+use tokio::sync::mpsc;
 
 const CONTROLWORD: u16 = 0x6040;
 const STATUSWORD: u16 = 0x6041;
@@ -287,6 +290,7 @@ impl Axis {
     ) -> Result<u16, Error> {
         let end = Instant::now() + timeout;
         let mut watch = guard.watch(self, before);
+        let mut interrupts = self.interrupts();
         loop {
             let sw = self.statusword().await?;
             if done(sw) {
@@ -309,7 +313,7 @@ impl Axis {
                 let kind = AxisErrorKind::Timeout { what: what.to_owned(), timeout_ms };
                 return Err(self.explained(STATUSWORD, 0, kind).await);
             }
-            tokio::time::sleep(self.config.poll).await;
+            self.pause(&mut interrupts).await?;
         }
     }
 
@@ -569,8 +573,9 @@ impl Axis {
         self.node.start().await?;
         self.set_mode(mode::CYCLIC_SYNC_POSITION).await?;
         self.enable().await?;
+        let events = self.interrupts();
         let pdo = self.node.bus().cyclic_pdo(cob_id, mapping, &[PdoValue::Signed(i64::from(here))]).await?;
-        Ok(Csp { pdo, syncs: self.node.bus().syncs() })
+        Ok(Csp { pdo: Some(pdo), syncs: self.node.bus().syncs(), node: self.node.id(), events, stopped: None })
     }
 }
 
@@ -750,18 +755,355 @@ impl UnitAxis {
 /// A cyclic synchronous position stream ([`Axis::cyclic_position`]).
 #[derive(Debug)]
 pub struct Csp {
-    pdo: CyclicPdo,
+    /// `None` once stopped: the bus no longer sends it.
+    pdo: Option<CyclicPdo>,
     syncs: watch::Receiver<u64>,
+    node: u8,
+    events: broadcast::Receiver<Event>,
+    stopped: Option<Interruption>,
 }
 
 impl Csp {
     /// Waits for the next SYNC, then makes `position` the next set-point: the bus sends it
     /// right before the SYNC after, and the drive takes it at that SYNC. Returns the number of
     /// SYNCs sent so far.
+    ///
+    /// A drive that rebooted (it forgot its mapping), was lost, or whose link went down stops
+    /// the stream at once: no more set-points are sent, and this and every later call fail
+    /// with [`Interruption`].
     pub async fn send(&mut self, position: i32) -> Result<u64, Error> {
-        self.syncs.changed().await.map_err(|_| Error::Closed)?;
+        loop {
+            self.check()?;
+            tokio::select! {
+                changed = self.syncs.changed() => {
+                    changed.map_err(|_| Error::Closed)?;
+                    break;
+                }
+                event = self.events.recv() => {
+                    if let Some(why) = interruption(self.node, event) {
+                        self.stop(why);
+                    }
+                }
+            }
+        }
+        self.check()?;
         let n = *self.syncs.borrow_and_update();
-        self.pdo.set(&[PdoValue::Signed(i64::from(position))]).await?;
+        match &self.pdo {
+            Some(pdo) => pdo.set(&[PdoValue::Signed(i64::from(position))]).await?,
+            None => return self.check().map(|()| n),
+        }
         Ok(n)
+    }
+
+    /// Why the stream stopped, if it did.
+    pub fn stopped(&self) -> Option<&Interruption> {
+        self.stopped.as_ref()
+    }
+
+    fn stop(&mut self, why: Interruption) {
+        // Dropping the cyclic PDO takes it off the bus from the next SYNC.
+        self.pdo = None;
+        self.stopped.get_or_insert(why);
+    }
+
+    /// Takes the events that came in; an error once stopped.
+    fn check(&mut self) -> Result<(), Error> {
+        loop {
+            match self.events.try_recv() {
+                Ok(event) => {
+                    if let Some(why) = interruption(self.node, Ok(event)) {
+                        self.stop(why);
+                    }
+                }
+                Err(broadcast::error::TryRecvError::Lagged(_)) => {}
+                Err(_) => break,
+            }
+        }
+        match &self.stopped {
+            None => Ok(()),
+            Some(why) => Err(Error::Axis(Box::new(AxisError {
+                node: self.node,
+                state: None,
+                statusword: None,
+                seen: None,
+                index: TARGET_POSITION,
+                sub: 0,
+                kind: AxisErrorKind::Interrupted(why.clone()),
+                register: None,
+            }))),
+        }
+    }
+}
+
+// Supervision (issue #35): operations that end at once when the drive reboots, is lost or its
+// link goes down; explicit recovery; an opt-in recovery policy.
+
+/// What a bus event means for an operation on `node`, if it ends it.
+fn interruption(node: u8, event: Result<Event, broadcast::error::RecvError>) -> Option<Interruption> {
+    match event {
+        Ok(Event::Node(NodeEvent::BootUp { node: n })) if n == node => Some(Interruption::Rebooted),
+        Ok(Event::Node(NodeEvent::Lost { node: n })) if n == node => Some(Interruption::Lost),
+        Ok(Event::Link(LinkState::Down { reason, .. })) => Some(Interruption::LinkDown(reason)),
+        Ok(Event::Link(LinkState::Closed)) | Err(broadcast::error::RecvError::Closed) => {
+            Some(Interruption::LinkDown("the bus closed".to_owned()))
+        }
+        _ => None,
+    }
+}
+
+/// The time a drive needs between the two controlword writes of a fault reset (0 then bit 7):
+/// at least one drive cycle (1 ms for the drives here), with a margin.
+pub const FAULT_RESET_GAP: Duration = Duration::from_millis(2);
+
+/// What an [`Axis`] may do by itself after trouble ([`Axis::keep`]). Opt-in: the default is
+/// [`RecoveryPolicy::Never`], since a drive enabled behind the application's back is a hazard
+/// (a safe-torque-off input low at power-up makes every automatic enable fail anyway).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum RecoveryPolicy {
+    /// Report only; the application calls [`Axis::recover`].
+    #[default]
+    Never,
+    /// After a reboot (once the supervisor has configured it again), re-select the mode and
+    /// enable it. Faults are left to the application.
+    ReenableAfterReboot,
+    /// After a fault, a fault reset and enable, at most `attempts` times, waiting `backoff`
+    /// before the first and twice as long before each next one; then it gives up and reports.
+    FaultReset {
+        /// Attempts in all.
+        attempts: u32,
+        /// Wait before the first attempt (doubled each time).
+        backoff: Duration,
+    },
+}
+
+/// What went wrong with a drive, for [`recovery_step`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Trouble {
+    /// It rebooted.
+    Rebooted,
+    /// It went to Fault.
+    Fault,
+}
+
+/// What the policy says to do.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RecoveryStep {
+    /// Nothing (the application acts).
+    Nothing,
+    /// Recover after this wait.
+    Recover {
+        /// Wait first.
+        after: Duration,
+    },
+    /// The attempts are used up: report and stop trying.
+    GiveUp,
+}
+
+/// The step for `trouble` under `policy` after `tried` attempts already made for it: a pure
+/// function, no I/O, no clock.
+pub fn recovery_step(policy: RecoveryPolicy, trouble: Trouble, tried: u32) -> RecoveryStep {
+    match (policy, trouble) {
+        (RecoveryPolicy::ReenableAfterReboot, Trouble::Rebooted) if tried == 0 => {
+            RecoveryStep::Recover { after: Duration::ZERO }
+        }
+        (RecoveryPolicy::ReenableAfterReboot, Trouble::Rebooted) => RecoveryStep::GiveUp,
+        (RecoveryPolicy::FaultReset { attempts, backoff }, Trouble::Fault) => {
+            if tried >= attempts {
+                RecoveryStep::GiveUp
+            } else {
+                RecoveryStep::Recover { after: backoff.saturating_mul(1u32 << tried.min(16)) }
+            }
+        }
+        _ => RecoveryStep::Nothing,
+    }
+}
+
+/// What [`Axis::keep`] reports.
+#[derive(Debug)]
+pub enum AxisReport {
+    /// The drive is enabled again after `trouble`, at attempt `attempt` (1-based).
+    Recovered {
+        /// What happened to it.
+        trouble: Trouble,
+        /// The attempt that worked.
+        attempt: u32,
+    },
+    /// An attempt failed.
+    AttemptFailed {
+        /// What happened to it.
+        trouble: Trouble,
+        /// The attempt (1-based).
+        attempt: u32,
+        /// Why it failed.
+        error: Error,
+    },
+    /// No more attempts: the drive stays as it is until the application acts.
+    GaveUp {
+        /// What happened to it.
+        trouble: Trouble,
+        /// Attempts made.
+        attempts: u32,
+    },
+}
+
+impl Axis {
+    /// The bus events from now on, for an operation to end at once on trouble.
+    fn interrupts(&self) -> broadcast::Receiver<Event> {
+        self.node.bus().events()
+    }
+
+    /// Waits one poll period, or less when the drive reboots, is lost or the link goes down.
+    async fn pause(&self, interrupts: &mut broadcast::Receiver<Event>) -> Result<(), Error> {
+        let sleep = tokio::time::sleep(self.config.poll);
+        tokio::pin!(sleep);
+        loop {
+            tokio::select! {
+                () = &mut sleep => return Ok(()),
+                event = interrupts.recv() => {
+                    if matches!(event, Err(broadcast::error::RecvError::Lagged(_))) {
+                        continue;
+                    }
+                    if let Some(why) = interruption(self.node.id(), event) {
+                        return Err(self.error(STATUSWORD, 0, AxisErrorKind::Interrupted(why)));
+                    }
+                }
+            }
+        }
+    }
+
+    /// A fault reset as CiA 402 asks: controlword bit 7 low, at least one drive cycle
+    /// ([`FAULT_RESET_GAP`]), then high (the rising edge), and the statusword confirming that
+    /// the drive left Fault within the state timeout; else the fault with its error code
+    /// (603Fh). Nothing when the drive is not in Fault.
+    pub async fn fault_reset(&self) -> Result<(), Error> {
+        let mut sw = self.statusword().await?;
+        if State::from_statusword(sw) == Some(State::FaultReactionActive) {
+            sw = self
+                .wait("the end of the fault reaction", self.config.state_timeout, |sw| {
+                    State::from_statusword(sw) != Some(State::FaultReactionActive)
+                })
+                .await?;
+        }
+        if State::from_statusword(sw) != Some(State::Fault) {
+            return Ok(());
+        }
+        self.controlword(0x0000).await?;
+        tokio::time::sleep(FAULT_RESET_GAP).await;
+        self.controlword(0x0080).await?;
+        let end = Instant::now() + self.config.state_timeout;
+        loop {
+            tokio::time::sleep(FAULT_RESET_GAP).await;
+            let sw = self.statusword().await?;
+            if State::from_statusword(sw) != Some(State::Fault) {
+                return self.controlword(0x0000).await;
+            }
+            if Instant::now() >= end {
+                let error_code = self.error_code().await;
+                return Err(self.error(CONTROLWORD, 0, AxisErrorKind::Fault { error_code }));
+            }
+        }
+    }
+
+    /// Brings the drive back after a reboot or a fault, explicitly: [`fault_reset`]
+    /// (Self::fault_reset) if it is in Fault, then mode `mode` (6060h, confirmed by 6061h),
+    /// then [`enable`](Self::enable).
+    pub async fn recover(&self, mode: i8) -> Result<(), Error> {
+        self.fault_reset().await?;
+        self.set_mode(mode).await?;
+        self.enable().await
+    }
+
+    /// Applies `policy` by itself from now on, in a task: after a reboot (once the node says
+    /// Operational again: the supervisor configured it) or a fault (an EMCY with a non-zero
+    /// code), [`recover`](Self::recover) with `mode` as [`recovery_step`] says; every attempt
+    /// and its outcome goes to the returned channel. The task ends when the receiver is
+    /// dropped or the bus closes. With [`RecoveryPolicy::Never`] it only reports nothing.
+    pub fn keep(self: Arc<Self>, policy: RecoveryPolicy, mode: i8) -> mpsc::Receiver<AxisReport> {
+        let (tx, rx) = mpsc::channel(16);
+        let mut events = self.interrupts();
+        tokio::spawn(async move {
+            let node = self.node.id();
+            let mut tried: std::collections::HashMap<&'static str, u32> = Default::default();
+            let mut rebooted = false;
+            loop {
+                let trouble = match events.recv().await {
+                    Ok(Event::Node(NodeEvent::BootUp { node: n })) if n == node => {
+                        rebooted = true;
+                        tried.insert("reboot", 0);
+                        continue;
+                    }
+                    Ok(Event::Node(NodeEvent::StateChanged {
+                        node: n, to: od_runtime::NmtState::Operational, ..
+                    })) if n == node && rebooted => {
+                        rebooted = false;
+                        Trouble::Rebooted
+                    }
+                    Ok(Event::Emergency { emcy, .. }) if emcy.node == node && emcy.code != 0 => Trouble::Fault,
+                    Ok(_) | Err(broadcast::error::RecvError::Lagged(_)) => continue,
+                    Err(broadcast::error::RecvError::Closed) => return,
+                };
+                let key = if trouble == Trouble::Rebooted { "reboot" } else { "fault" };
+                loop {
+                    let n = tried.get(key).copied().unwrap_or(0);
+                    let report = match recovery_step(policy, trouble, n) {
+                        RecoveryStep::Nothing => break,
+                        RecoveryStep::GiveUp => {
+                            if n != u32::MAX {
+                                let _ = tx.send(AxisReport::GaveUp { trouble, attempts: n }).await;
+                            }
+                            // Reported once; quiet until a reboot starts afresh.
+                            tried.insert(key, u32::MAX);
+                            break;
+                        }
+                        RecoveryStep::Recover { after } => {
+                            tokio::time::sleep(after).await;
+                            tried.insert(key, n.saturating_add(1));
+                            match self.recover(mode).await {
+                                Ok(()) => AxisReport::Recovered { trouble, attempt: n + 1 },
+                                Err(error) => AxisReport::AttemptFailed { trouble, attempt: n + 1, error },
+                            }
+                        }
+                    };
+                    let failed = matches!(report, AxisReport::AttemptFailed { .. });
+                    if tx.send(report).await.is_err() {
+                        return;
+                    }
+                    if !failed {
+                        break;
+                    }
+                }
+                // The EMCYs of the attempts made are not new faults.
+                while events.try_recv().is_ok_and(|e| matches!(e, Event::Emergency { .. })) {}
+            }
+        });
+        rx
+    }
+}
+
+#[cfg(test)]
+mod recovery_tests {
+    use super::*;
+
+    #[test]
+    fn recovery_steps() {
+        let ms = Duration::from_millis;
+        let bounded = RecoveryPolicy::FaultReset { attempts: 3, backoff: ms(10) };
+        #[rustfmt::skip]
+        let table: &[(RecoveryPolicy, Trouble, u32, RecoveryStep)] = &[
+            (RecoveryPolicy::Never, Trouble::Rebooted, 0, RecoveryStep::Nothing),
+            (RecoveryPolicy::Never, Trouble::Fault, 0, RecoveryStep::Nothing),
+            (RecoveryPolicy::ReenableAfterReboot, Trouble::Rebooted, 0, RecoveryStep::Recover { after: ms(0) }),
+            (RecoveryPolicy::ReenableAfterReboot, Trouble::Rebooted, 1, RecoveryStep::GiveUp),
+            (RecoveryPolicy::ReenableAfterReboot, Trouble::Fault, 0, RecoveryStep::Nothing),
+            (bounded, Trouble::Fault, 0, RecoveryStep::Recover { after: ms(10) }),
+            (bounded, Trouble::Fault, 1, RecoveryStep::Recover { after: ms(20) }),
+            (bounded, Trouble::Fault, 2, RecoveryStep::Recover { after: ms(40) }),
+            (bounded, Trouble::Fault, 3, RecoveryStep::GiveUp),
+            (bounded, Trouble::Fault, u32::MAX, RecoveryStep::GiveUp),
+            (bounded, Trouble::Rebooted, 0, RecoveryStep::Nothing),
+        ];
+        for &(policy, trouble, tried, want) in table {
+            assert_eq!(recovery_step(policy, trouble, tried), want, "{policy:?} {trouble:?} {tried}");
+        }
     }
 }

@@ -34,6 +34,7 @@ use od_bus::CanFrame;
 use tokio::sync::broadcast;
 use tokio::time::Instant;
 
+use crate::supervisor::policy::{NetworkSupervision, NodeSupervision};
 use eds::concise::{self, Plan, Role};
 use od_runtime::master::nmt::Target;
 use od_runtime::{NmtCommand, NodeId};
@@ -55,6 +56,9 @@ pub struct BootNode {
     /// Its serial number, when the description gives one (`serial`, the DCF's
     /// `LSS_SerialNumber`): the device LSS gives this node-ID to ([`crate::lss`]).
     pub serial: Option<u32>,
+    /// How the supervisor watches it after boot ([`crate::supervisor`]); [`boot`] does not
+    /// look at it.
+    pub supervision: NodeSupervision,
 }
 
 /// The nodes of a network, each with its plan.
@@ -62,6 +66,9 @@ pub struct BootNode {
 pub struct Network {
     /// In the order of the file (or of the DCFs given).
     pub nodes: Vec<BootNode>,
+    /// How the supervisor treats the network after boot (`[network.supervision]`, or a master
+    /// DCF's 1F80h: [`Network::apply_master_dcf`]).
+    pub supervision: NetworkSupervision,
 }
 
 /// Why a network description or a DCF cannot be booted. Its text lists every problem.
@@ -134,13 +141,20 @@ impl Network {
         if outcome.has_errors() {
             return Err(LoadError::Invalid(od_codegen::network::render_all(&outcome.diagnostics)));
         }
-        let mut net = Network::default();
+        let mut net = Network { supervision: outcome.supervision.into(), ..Network::default() };
         let mut problems = Vec::new();
         for dcf in outcome.dcfs {
             match concise::plan(&dcf.model, dcf.node_id) {
                 Ok(plan) => {
                     let serial = dcf.model.commissioning.as_ref().and_then(|c| c.lss_serial_number);
-                    net.nodes.push(BootNode { name: dcf.name, node_id: dcf.node_id, device: dcf.device, plan, serial })
+                    net.nodes.push(BootNode {
+                        name: dcf.name,
+                        node_id: dcf.node_id,
+                        device: dcf.device,
+                        plan,
+                        serial,
+                        supervision: dcf.supervision.into(),
+                    })
                 }
                 Err(e) => problems.extend(e.iter().map(|p| format!("node `{}` ({}): {p}", dcf.name, dcf.device))),
             }
@@ -187,7 +201,51 @@ impl Network {
             LoadError::Invalid(e.iter().map(|p| format!("{shown}: {p}")).collect::<Vec<_>>().join("\n"))
         })?;
         let serial = commissioning.and_then(|c| c.lss_serial_number);
-        Ok(BootNode { name, node_id, device: shown, plan, serial })
+        Ok(BootNode { name, node_id, device: shown, plan, serial, supervision: NodeSupervision::default() })
+    }
+
+    /// Takes the supervision settings of a master's DCF: 1F80h (NMT start-up) for the network,
+    /// 1F81h sub N (NMT slave assignment) for node N, where the DCF gives a value
+    /// (`ParameterValue`, else `DefaultValue`). Nodes the DCF does not list keep theirs.
+    pub fn apply_master_dcf(&mut self, path: &Path) -> Result<(), LoadError> {
+        let shown = path.display().to_string();
+        let parsed = eds::read_file(path, &eds::Options::lenient())
+            .map_err(|error| LoadError::Io { path: shown.clone(), error })?;
+        if parsed.has_errors() {
+            return Err(LoadError::Invalid(format!(
+                "{shown}: the master's DCF has {} error(s) (`odgen check {shown}` lists them)",
+                parsed.errors().count()
+            )));
+        }
+        self.apply_master_model(&parsed.model);
+        Ok(())
+    }
+
+    /// [`Network::apply_master_dcf`] on a model already read.
+    pub fn apply_master_model(&mut self, model: &eds::Model) {
+        let value = |index: u16, sub: u8| -> Option<u32> {
+            let entry = model.objects.get(&eds::Index(index))?.subs.get(&eds::SubIndex(sub))?;
+            let v = entry.parameter_value().or(entry.default.as_ref())?;
+            u32::try_from(v.resolve(0)?).ok()
+        };
+        if let Some(v) = value(0x1F80, 0) {
+            let attempts = self.supervision.boot_attempts;
+            self.supervision = NetworkSupervision { boot_attempts: attempts, ..NetworkSupervision::from_1f80(v) };
+            // 1F80h bit 3: the application starts the nodes, not the master.
+            if v & (1 << 3) != 0 {
+                self.nodes.iter_mut().for_each(|n| n.supervision.start = false);
+            }
+        }
+        let stop_or_reset = self.supervision.on_mandatory_failure;
+        for node in &mut self.nodes {
+            if let Some(v) = value(0x1F81, node.node_id) {
+                let start = node.supervision.start;
+                node.supervision = NodeSupervision { start: start && v & 1 != 0, ..NodeSupervision::from_1f81(v) };
+                if node.supervision.mandatory && stop_or_reset.is_network_wide() {
+                    node.supervision.on_lost = stop_or_reset;
+                }
+            }
+        }
     }
 }
 
@@ -305,6 +363,8 @@ pub struct NodeReport {
     pub planned: usize,
     /// Whether an NMT start was sent to it (or to all nodes).
     pub started: bool,
+    /// When the NMT start went out (before its heartbeat confirmed it), if it did.
+    pub started_at: Option<Instant>,
     /// Configured, or why not.
     pub result: Result<(), BootError>,
 }
@@ -312,20 +372,33 @@ pub struct NodeReport {
 /// Boots `network` on `bus`: see the [module](self) for the steps. One report per node, in the
 /// network's order; an error of one node never stops another.
 pub async fn boot(bus: &Bus, network: &Network, options: &BootOptions) -> Vec<NodeReport> {
-    let mut reports: Vec<NodeReport> = Vec::with_capacity(network.nodes.len());
-    if options.concurrent {
+    boot_nodes(bus, &network.nodes, options.concurrent, &|_| options.start, true).await
+}
+
+/// Boots `nodes` as [`boot`] does, starting those `start_it` says; with `all_at_once`, one NMT
+/// start to all nodes when every node was configured and is to be started (else one per node,
+/// which leaves the nodes not given here untouched).
+pub(crate) async fn boot_nodes(
+    bus: &Bus,
+    nodes: &[BootNode],
+    concurrent: bool,
+    start_it: &(dyn Fn(&BootNode) -> bool + Sync),
+    all_at_once: bool,
+) -> Vec<NodeReport> {
+    let mut reports: Vec<NodeReport> = Vec::with_capacity(nodes.len());
+    if concurrent {
         let mut tasks = tokio::task::JoinSet::new();
-        for (i, node) in network.nodes.iter().enumerate() {
+        for (i, node) in nodes.iter().enumerate() {
             let (bus, node) = (bus.clone(), node.clone());
             tasks.spawn(async move { (i, configure(&bus, &node).await) });
         }
-        let mut done: Vec<Option<NodeReport>> = network.nodes.iter().map(|_| None).collect();
+        let mut done: Vec<Option<NodeReport>> = nodes.iter().map(|_| None).collect();
         while let Some(joined) = tasks.join_next().await {
             if let Ok((i, report)) = joined {
                 done[i] = Some(report);
             }
         }
-        for (slot, node) in done.into_iter().zip(&network.nodes) {
+        for (slot, node) in done.into_iter().zip(nodes) {
             // A task that panicked (a bug) still gives its node a report.
             reports.push(slot.unwrap_or_else(|| NodeReport {
                 name: node.name.clone(),
@@ -333,19 +406,21 @@ pub async fn boot(bus: &Bus, network: &Network, options: &BootOptions) -> Vec<No
                 written: 0,
                 planned: node.plan.writes.len(),
                 started: false,
+                started_at: None,
                 result: Err(BootError::Bus { name: node.name.clone(), stage: Stage::Configure, error: Error::Closed }),
             }));
         }
     } else {
-        for node in &network.nodes {
+        for node in nodes {
             reports.push(configure(bus, node).await);
         }
     }
-    if options.start {
+    let wanted: Vec<bool> = nodes.iter().map(start_it).collect();
+    if wanted.iter().any(|w| *w) {
         // Subscribed before the start, so that no heartbeat after it is missed.
         let mut frames = bus.frames();
-        start(bus, &mut reports).await;
-        confirm(&mut frames, network, &mut reports).await;
+        start(bus, &mut reports, &wanted, all_at_once).await;
+        confirm(&mut frames, nodes, &mut reports).await;
     }
     reports
 }
@@ -353,10 +428,10 @@ pub async fn boot(bus: &Bus, network: &Network, options: &BootOptions) -> Vec<No
 /// CiA 302-2's "start error control": each started node that produces heartbeats (1017h > 0)
 /// sends one saying Operational within three of its periods (at least 100 ms), or its report
 /// says it did not.
-async fn confirm(frames: &mut broadcast::Receiver<CanFrame>, network: &Network, reports: &mut [NodeReport]) {
+async fn confirm(frames: &mut broadcast::Receiver<CanFrame>, nodes: &[BootNode], reports: &mut [NodeReport]) {
     let now = Instant::now();
     let mut pending: BTreeMap<u8, (usize, u16, Instant)> = BTreeMap::new();
-    for (i, (r, node)) in reports.iter().zip(&network.nodes).enumerate() {
+    for (i, (r, node)) in reports.iter().zip(nodes).enumerate() {
         if r.started && r.result.is_ok() && node.plan.heartbeat_ms > 0 {
             let wait = Duration::from_millis(u64::from(node.plan.heartbeat_ms) * 3).max(Duration::from_millis(100));
             pending.insert(r.node_id, (i, node.plan.heartbeat_ms, now + wait));
@@ -395,21 +470,31 @@ async fn confirm(frames: &mut broadcast::Receiver<CanFrame>, network: &Network, 
     }
 }
 
-/// NMT start: to all nodes at once when all were configured, else to each configured one.
-async fn start(bus: &Bus, reports: &mut [NodeReport]) {
-    if !reports.is_empty()
+/// NMT start: to all nodes at once when all were configured (and `all_at_once`), else to each
+/// configured one that is `wanted`.
+async fn start(bus: &Bus, reports: &mut [NodeReport], wanted: &[bool], all_at_once: bool) {
+    if all_at_once
+        && !reports.is_empty()
+        && wanted.iter().all(|w| *w)
         && reports.iter().all(|r| r.result.is_ok())
         && bus.nmt(NmtCommand::Start, Target::All).await.is_ok()
     {
-        reports.iter_mut().for_each(|r| r.started = true);
+        let at = Instant::now();
+        reports.iter_mut().for_each(|r| {
+            r.started = true;
+            r.started_at = Some(at);
+        });
         return;
     }
     // Some node failed (or the command to all could not be sent): each configured node on its
     // own, each with its own error.
-    for r in reports.iter_mut().filter(|r| r.result.is_ok()) {
+    for (r, _) in reports.iter_mut().zip(wanted).filter(|(r, w)| r.result.is_ok() && **w) {
         let Some(id) = NodeId::new(r.node_id) else { continue };
         match bus.nmt(NmtCommand::Start, Target::Node(id)).await {
-            Ok(()) => r.started = true,
+            Ok(()) => {
+                r.started = true;
+                r.started_at = Some(Instant::now());
+            }
             Err(error) => r.result = Err(BootError::Bus { name: r.name.clone(), stage: Stage::Nmt, error }),
         }
     }
@@ -423,6 +508,7 @@ async fn configure(bus: &Bus, boot: &BootNode) -> NodeReport {
         written: 0,
         planned: boot.plan.writes.len(),
         started: false,
+        started_at: None,
         result: Ok(()),
     };
     report.result = run(bus, boot, &mut report.written).await;

@@ -563,6 +563,24 @@ impl Task {
         }
     }
 
+    /// A boot-up of `node`: the transfers running or waiting on its SDO channel end at once
+    /// with [`Error::Rebooted`] (the node forgot them; waiting for their timeouts would only
+    /// delay its reconfiguration), before the boot-up event goes out.
+    fn rebooted(&mut self, node: u8) {
+        let Some(channel) = self.channels.get_mut(&node) else { return };
+        if let Some(active) = channel.active.take() {
+            // The machine is made idle; its abort frame, if the request was on the bus, is
+            // ignored by a server that has no transfer.
+            let _ = channel.client.abort(AbortCode::GENERAL_ERROR);
+            let (index, sub) = (active.request.index, active.request.sub);
+            let _ = active.request.reply.send(Err(Error::Rebooted { node, index, sub }));
+        }
+        for request in channel.queue.drain(..) {
+            let (index, sub) = (request.index, request.sub);
+            let _ = request.reply.send(Err(Error::Rebooted { node, index, sub }));
+        }
+    }
+
     /// Ends every transfer with [`Error::Closed`].
     fn close(&mut self) {
         let _ = self.events.send(Event::Link(LinkState::Closed));
@@ -801,8 +819,11 @@ impl Task {
                 let _ = self.monitor.watch(node, Watch::Heartbeat { timeout: 0 }, None, now);
                 event = self.monitor.on_frame(&frame, now);
             }
-            if let Some(event) = event {
-                let _ = self.events.send(Event::Node(event));
+            if let Some(node_event) = event {
+                if let od_runtime::master::NodeEvent::BootUp { node } = node_event {
+                    self.rebooted(node);
+                }
+                let _ = self.events.send(Event::Node(node_event));
             }
         }
         if let Some(emcy) = Emergency::from_frame(&frame) {

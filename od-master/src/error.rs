@@ -109,6 +109,18 @@ pub enum Error {
     /// A CiA 402 operation failed.
     #[error(transparent)]
     Axis(#[from] Box<AxisError>),
+    /// The node sent a boot-up message while this transfer was running or waiting: it
+    /// restarted and forgot the transfer (and its configuration). Ended at once, not by its
+    /// timeout.
+    #[error("node {node}, {index:04X}h sub {sub}: the node rebooted (boot-up message) during the transfer")]
+    Rebooted {
+        /// The node.
+        node: u8,
+        /// Object index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+    },
 }
 
 impl Error {
@@ -125,6 +137,7 @@ impl Error {
             Error::Refused { .. } => "Refused",
             Error::Unit { .. } => "Unit",
             Error::Lss { .. } => "Lss",
+            Error::Rebooted { .. } => "Rebooted",
             Error::Axis(_) => "Axis",
         }
     }
@@ -330,6 +343,26 @@ pub enum AxisErrorKind {
         /// What the drive said.
         why: StopReason,
     },
+    /// The operation was cut short by what happened to the drive or the bus.
+    #[error("{0}")]
+    Interrupted(Interruption),
+}
+
+/// What ended a CiA 402 operation at once, rather than at its timeout.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum Interruption {
+    /// The drive sent a boot-up message: it restarted with its defaults (Switch on disabled,
+    /// its mappings gone) and does not move until the application recovers it.
+    #[error(
+        "the drive rebooted (boot-up message): it is in Switch on disabled with its defaults; recover() enables it again"
+    )]
+    Rebooted,
+    /// Its heartbeat (or guarding) was lost.
+    #[error("the drive's heartbeat was lost")]
+    Lost,
+    /// The link to the bus went down (socketcand).
+    #[error("the link to the bus went down: {0}")]
+    LinkDown(String),
 }
 
 /// Same text as Display.

@@ -11,6 +11,7 @@
 //! | errors naming the node, the object and the abort code | [`Error`] | [`error`] |
 //! | typed entries, PDOs and quantities for generated clients | [`remote::Object`] | [`remote`] |
 //! | a network configured at boot (CiA 302-2): identity, configuration, PDOs, start | [`boot::boot`] | [`boot`] |
+//! | a network kept running after boot: reboots, lost heartbeats, policies, events | [`supervisor::Supervisor`] | [`supervisor`] |
 //! | a blocking facade for scripts, wrapping the async handles | [`blocking::Bus`] | [`blocking`] |
 //!
 //! The protocol is `od_runtime::master`'s (sans-IO state machines); the buses are `od-bus`'s.
@@ -29,12 +30,13 @@ pub mod node;
 pub mod register;
 pub mod remote;
 mod sdo_options;
+pub mod supervisor;
 mod unit_error;
 
 pub use axis::{Axis, AxisConfig, Homing, HomingMethod, Move, UnitAxis};
 pub use boot::{BootError, BootOptions, Network, NodeReport};
 pub use bus::{Bus, Config, CyclicPdo, Tpdo};
-pub use error::{AxisError, AxisErrorKind, Error, Impossible, RegisterReading, SdoContext, StopReason};
+pub use error::{AxisError, AxisErrorKind, Error, Impossible, Interruption, RegisterReading, SdoContext, StopReason};
 pub use event::{EmcyTexts, Event};
 pub use node::{Node, SdoOptions, SdoValue};
 pub use register::StatusRegister;

@@ -13,6 +13,7 @@
 //! drive-sim send --bus socketcand://127.0.0.1:29536/can0 601#4041600000000000 000#0100 ...
 //! drive-sim slcan (--bus socketcand://127.0.0.1:29536/can0 | --device drvi --node-id 2 ...)
 //!               [--firmware canable|lawicel] [--link PATH] [--no-wire]   a simulated slcan adapter
+//! drive-sim fault --control /tmp/drives.sock 3 power-cycle [OFF_MS]   faults on demand (run --control)
 //! ```
 //!
 //! `run` simulates devices: each `--device` starts a group that the following `--node-id`,
@@ -86,6 +87,37 @@ enum Command {
     /// `slcan on PATH`; open PATH with od-master (--bus slcan://PATH), python-can's slcan
     /// interface or slcand. Its bus: a hub (--bus) or devices in this process (--device).
     Slcan(drive::slcan::SlcanArgs),
+    /// Injects a fault into a device of a running `drive-sim run --control SOCKET`.
+    #[command(long_about = FAULT_HELP)]
+    Fault(FaultArgs),
+}
+
+const FAULT_HELP: &str = "Injects a fault into one device of a running `drive-sim run --control SOCKET`, to \
+rehearse what a machine meets:
+
+  power-cycle [OFF_MS]   power off for OFF_MS (default 10) ms, then on: the device boots again \
+(boot-up message) with its stored parameters (1010h), forgetting its configuration
+  silence MS             no heartbeat leaves the device for MS ms; it keeps running (a pulled \
+cable, as the master sees it)
+  fault [CODE] [sticky]  the drive goes to Fault with error code CODE (hex, default 5530h); with \
+sticky the cause stays: it faults again after each fault reset, until `clear`
+  clear                  the cause of a sticky fault is gone
+
+The socket takes one line per command, `NODE COMMAND...`, and answers `ok` or `error: WHY` \
+(so `echo '3 silence 2000' | socat - UNIX:/tmp/drives.sock` works too). A device killed with \
+SIGKILL and started again is the other way to power-cycle one (with --state-dir it keeps what \
+it saved).";
+
+#[derive(Debug, Args)]
+struct FaultArgs {
+    /// The control socket of the running `drive-sim run --control SOCKET`.
+    #[arg(long)]
+    control: PathBuf,
+    /// The device's node id.
+    node: u8,
+    /// The fault: power-cycle [OFF_MS] | silence MS | fault [CODE] [sticky] | clear.
+    #[arg(required = true, num_args = 1.., allow_hyphen_values = true)]
+    fault: Vec<String>,
 }
 
 #[derive(Debug, Args)]
@@ -227,6 +259,10 @@ struct RunArgs {
     /// With --trace/--plot: keep one sample per this many milliseconds (0: every tick).
     #[arg(long, default_value_t = 5)]
     trace_interval_ms: u64,
+    /// Listen on this Unix socket for faults to inject: power cycles, silenced heartbeats,
+    /// drive faults (see `drive-sim fault --help`).
+    #[arg(long)]
+    control: Option<PathBuf>,
 }
 
 fn parse_kind(s: &str) -> Result<DeviceKind, String> {
@@ -297,6 +333,7 @@ fn main() -> ExitCode {
         Command::Slcan(args) => Termination::block()
             .map_err(|e| format!("cannot set up signal handling: {e}"))
             .and_then(|t| drive::slcan::run(&args, || eprintln!("drive-sim: {}, stopping", t.wait()))),
+        Command::Fault(args) => run_fault(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -462,6 +499,10 @@ fn run_devices(args: &RunArgs, m: &ArgMatches) -> Result<(), String> {
         }
         nodes.push((name, node));
     }
+    let nodes = match &args.control {
+        Some(path) => faults_on_demand(path, nodes)?,
+        None => nodes,
+    };
     // Before any thread starts, so every thread inherits the blocked signal set.
     let termination = Termination::block().map_err(|e| format!("cannot set up signal handling: {e}"))?;
     // By default the devices share one connection (one endpoint) and one thread, as the
@@ -591,6 +632,110 @@ fn logged_hub(config: HubConfig) -> HubConfig {
             eprintln!("hub: {event}");
         }
     }))
+}
+
+/// Devices by name, as `run` starts them.
+type Named = Vec<(String, Box<dyn AnyNode>)>;
+
+/// Wraps every device in a fault injector and serves `path` for commands to them.
+#[cfg(unix)]
+fn faults_on_demand(path: &std::path::Path, nodes: Named) -> Result<Named, String> {
+    use std::io::{BufRead, BufReader, Read};
+    use std::os::unix::fs::FileTypeExt;
+    use std::os::unix::net::UnixListener;
+    if let Ok(meta) = std::fs::symlink_metadata(path) {
+        if !meta.file_type().is_socket() {
+            return Err(format!("--control {}: exists and is not a socket; give another path", path.display()));
+        }
+        // A socket left by an earlier run.
+        std::fs::remove_file(path).map_err(|e| format!("--control {}: {e}", path.display()))?;
+    }
+    let listener = UnixListener::bind(path).map_err(|e| format!("--control {}: {e}", path.display()))?;
+    let mut handles = std::collections::BTreeMap::new();
+    let mut wrapped = Vec::new();
+    for (name, node) in nodes {
+        let id = node.node_id().get();
+        let (faulty, handle) = drive::node::Faulty::new(node);
+        handles.insert(id, handle);
+        wrapped.push((name, Box::new(faulty) as Box<dyn AnyNode>));
+    }
+    eprintln!("drive-sim: faults on demand at {}", path.display());
+    std::thread::Builder::new()
+        .name("fault-control".into())
+        .spawn(move || {
+            for stream in listener.incoming().flatten() {
+                let Ok(mut writer) = stream.try_clone() else { continue };
+                // One line at most 256 bytes: a command is a few words.
+                for line in BufReader::new(stream.take(64 * 1024)).lines() {
+                    let Ok(line) = line else { break };
+                    if line.trim().is_empty() {
+                        continue;
+                    }
+                    let answer = match fault_command(&line, &handles) {
+                        Ok(what) => {
+                            eprintln!("drive-sim: fault: {what}");
+                            "ok".to_owned()
+                        }
+                        Err(e) => format!("error: {e}"),
+                    };
+                    if writeln!(writer, "{answer}").is_err() {
+                        break;
+                    }
+                }
+            }
+        })
+        .map_err(|e| format!("cannot start the control thread: {e}"))?;
+    Ok(wrapped)
+}
+
+#[cfg(not(unix))]
+fn faults_on_demand(path: &std::path::Path, _nodes: Named) -> Result<Named, String> {
+    Err(format!("--control {}: control sockets are Unix sockets; not available here", path.display()))
+}
+
+/// `NODE COMMAND...` to the device's fault injector.
+fn fault_command(
+    line: &str,
+    handles: &std::collections::BTreeMap<u8, drive::node::FaultHandle>,
+) -> Result<String, String> {
+    let line = line.trim();
+    if line.len() > 256 {
+        return Err("command longer than 256 bytes".into());
+    }
+    let (node, rest) =
+        line.split_once(char::is_whitespace).ok_or_else(|| format!("`{line}`: expected NODE COMMAND"))?;
+    let id: u8 = node.parse().map_err(|_| format!("`{node}` is not a node id"))?;
+    let handle = handles.get(&id).ok_or_else(|| {
+        let ids: Vec<String> = handles.keys().map(u8::to_string).collect();
+        format!("no device with node id {id} here (these are: {})", ids.join(", "))
+    })?;
+    let fault: drive::node::Fault = rest.parse()?;
+    handle.inject(fault);
+    Ok(format!("node {id}: {fault:?}"))
+}
+
+#[cfg(unix)]
+fn run_fault(args: &FaultArgs) -> Result<(), String> {
+    use std::io::{BufRead, BufReader};
+    let line = format!("{} {}", args.node, args.fault.join(" "));
+    // Checked here too, for a message before connecting.
+    line.split_once(' ').map(|(_, f)| f.parse::<drive::node::Fault>()).transpose()?;
+    let mut stream = std::os::unix::net::UnixStream::connect(&args.control).map_err(|e| {
+        format!("{}: {e} (is `drive-sim run --control {}` running?)", args.control.display(), args.control.display())
+    })?;
+    stream.set_read_timeout(Some(Duration::from_secs(5))).map_err(|e| e.to_string())?;
+    writeln!(stream, "{line}").map_err(|e| format!("{}: {e}", args.control.display()))?;
+    let mut answer = String::new();
+    BufReader::new(stream).read_line(&mut answer).map_err(|e| format!("{}: {e}", args.control.display()))?;
+    match answer.trim() {
+        "ok" => Ok(()),
+        other => Err(other.strip_prefix("error: ").unwrap_or(other).to_owned()),
+    }
+}
+
+#[cfg(not(unix))]
+fn run_fault(args: &FaultArgs) -> Result<(), String> {
+    Err(format!("{}: control sockets are Unix sockets; not available here", args.control.display()))
 }
 
 fn quiet_hub(config: HubConfig) -> HubConfig {

@@ -65,6 +65,7 @@
 
 mod app;
 mod devices;
+mod faults;
 mod kind;
 mod params;
 mod retain;
@@ -82,6 +83,7 @@ use od_bus::CanFrame;
 
 pub use app::{Ctx, DefaultApp, DriveApp, EMCY_HEARTBEAT_OR_GUARDING, EMCY_RPDO_TIMEOUT, LossRecord, WriteRequest};
 pub use devices::{Apps, DefaultApps, DeviceKind, NodeConfig, NodeSetupError};
+pub use faults::{Fault, FaultHandle, Faulty};
 pub use params::{DcfError, NodeStorage, ParameterSet};
 pub use retain::{FileRetain, MemoryRetain, Retain};
 pub use run::{
@@ -381,6 +383,16 @@ pub trait AnyNode: Send + 'static {
     fn as_any(&self) -> &dyn Any;
     /// The concrete node, mutably.
     fn as_any_mut(&mut self) -> &mut dyn Any;
+    /// Runs an NMT command inside the device, as its own firmware would (a power cycle is
+    /// `ResetNode`: it boots again with its stored parameters). Nothing by default.
+    fn local_nmt(&mut self, _command: od_runtime::NmtCommand, _now: Micros) {}
+    /// Puts the drive in Fault with `error_code` (603Fh, EMCY), as a drive fault would. Nothing
+    /// by default.
+    fn inject_fault(&mut self, _error_code: u16, _now: Micros) {}
+    /// Its CiA 402 state, if it has one.
+    fn cia402_state(&self) -> Option<od_runtime::cia402::State> {
+        None
+    }
 }
 
 impl<OD, A, S> AnyNode for Node<OD, A, S>
@@ -415,5 +427,14 @@ where
     }
     fn as_any_mut(&mut self) -> &mut dyn Any {
         self
+    }
+    fn local_nmt(&mut self, command: od_runtime::NmtCommand, now: Micros) {
+        self.with_app(now, |_, ctx| ctx.nmt_command(command));
+    }
+    fn inject_fault(&mut self, error_code: u16, now: Micros) {
+        self.with_app(now, |_, ctx| ctx.set_fault(error_code));
+    }
+    fn cia402_state(&self) -> Option<od_runtime::cia402::State> {
+        self.dev.cia402_state()
     }
 }

@@ -82,6 +82,8 @@ pub struct NodeDcf {
     pub model: Model,
     /// The DCF text (`eds::write::write_dcf` of `model`).
     pub text: String,
+    /// How the master supervises it after boot (`[nodes.NAME.supervision]`).
+    pub supervision: desc::NodeSupervision,
 }
 
 /// What [`build`] made: the DCFs (none if anything is wrong) and every diagnostic.
@@ -91,6 +93,8 @@ pub struct Outcome {
     pub dcfs: Vec<NodeDcf>,
     /// Every problem found, in the order found (file order within each stage).
     pub diagnostics: Vec<Diagnostic>,
+    /// How the master supervises the network after boot (`[network.supervision]`).
+    pub supervision: desc::NetworkSupervision,
 }
 
 impl Outcome {
@@ -122,7 +126,7 @@ pub fn build(display: &str, dir: &Path, text: &str) -> Outcome {
             let message = e.message().trim().to_owned();
             let d =
                 Diagnostic::error(codes::TOML_SYNTAX, format!("not valid TOML: {message}")).at(reader.snippet(span));
-            return Outcome { dcfs: Vec::new(), diagnostics: vec![d] };
+            return Outcome { dcfs: Vec::new(), diagnostics: vec![d], supervision: Default::default() };
         }
     };
     let description = reader.document(root.get_ref());
@@ -354,7 +358,15 @@ pub fn build(display: &str, dir: &Path, text: &str) -> Outcome {
             c.lss_serial_number = serial.or(c.lss_serial_number);
         }
         let text = eds::write::write_dcf(&model);
-        dcfs.push(NodeDcf { name: name.clone(), node_id, device: device.display.clone(), file_name, model, text });
+        dcfs.push(NodeDcf {
+            name: name.clone(),
+            node_id,
+            device: device.display.clone(),
+            file_name,
+            model,
+            text,
+            supervision: node.supervision,
+        });
     }
     // File order: each diagnostic at its place in the network file (stable, so that those at
     // one place keep the order they were found in).
@@ -363,7 +375,8 @@ pub fn build(display: &str, dir: &Path, text: &str) -> Outcome {
         _ => (u32::MAX, 0),
     });
     let failed = diags.iter().any(|d| d.severity == Severity::Error);
-    Outcome { dcfs: if failed { Vec::new() } else { dcfs }, diagnostics: diags }
+    let supervision = description.network.supervision;
+    Outcome { dcfs: if failed { Vec::new() } else { dcfs }, diagnostics: diags, supervision }
 }
 
 /// Every `$NODEID` value gets its resolved `ParameterValue` (the DefaultValue keeps the

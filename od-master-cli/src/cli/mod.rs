@@ -6,5 +6,6 @@ pub mod decode;
 pub mod device;
 pub mod lss;
 pub mod object;
+pub mod run;
 pub mod units;
 pub mod value;

@@ -5,3 +5,4 @@ mod boot_cli;
 mod cli;
 mod cli_errors;
 mod lss_cli;
+mod run_cli;

@@ -313,7 +313,7 @@ async fn a_started_node_without_its_heartbeat_is_reported() {
             tokio::time::sleep(Duration::from_micros(200)).await;
         }
     });
-    let one = Network { nodes: vec![x] };
+    let one = Network { nodes: vec![x], ..Network::default() };
     let reports = boot::boot(&n.bus, &one, &BootOptions::default()).await;
     let r = &reports[0];
     assert!(r.started && r.written == r.planned, "{r:?}");

@@ -14,3 +14,4 @@ mod lss;
 mod readme;
 mod sdo;
 mod slcan;
+mod supervisor;

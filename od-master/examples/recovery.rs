@@ -1,0 +1,236 @@
+//! Recovery time and soak of the supervisor (a benchmark, not a test: it reports).
+//!
+//! ```text
+//! recovery mem [ROUNDS]                          the three drives on the in-memory bus, real time
+//! recovery hub ADDR SOCKET [ROUNDS]              over a hub: drives of `drive-sim run --control SOCKET`
+//! recovery soak ADDR SOCKET SECONDS [MIN_S MAX_S]  random power cycles every MIN..MAX s (10..30)
+//! ```
+//!
+//! networks/example.toml is supervised with SYNC every 1 ms. Each round power-cycles each
+//! drive in turn (off 5 ms) and records the supervisor's time from the boot-up message to the
+//! node Operational again (its `Reconfigured` event). The soak counts reboots seen, nodes
+//! reconfigured, configurations read back wrong, and TPDO 2 (sent after every SYNC) missing on
+//! the drives not being power-cycled.
+
+use std::collections::BTreeMap;
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use od_master::supervisor::{Supervisor, SupervisorEvent, verify};
+use od_master::{Bus, Config, Network};
+use tokio::sync::broadcast;
+
+fn example() -> Network {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../networks/example.toml");
+    Network::from_description(&path).expect("networks/example.toml")
+}
+
+/// How a drive is power-cycled.
+enum Injector {
+    Mem(Vec<(u8, drive::node::FaultHandle)>),
+    Socket(PathBuf),
+}
+
+impl Injector {
+    fn power_cycle(&self, node: u8) {
+        match self {
+            Injector::Mem(handles) => {
+                if let Some((_, h)) = handles.iter().find(|(id, _)| *id == node) {
+                    h.inject(drive::node::Fault::PowerCycle { off: 5_000 });
+                }
+            }
+            Injector::Socket(path) => control(path, &format!("{node} power-cycle 5")),
+        }
+    }
+}
+
+fn control(path: &Path, line: &str) {
+    let mut s = std::os::unix::net::UnixStream::connect(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    writeln!(s, "{line}").unwrap();
+    let mut answer = String::new();
+    BufReader::new(s).read_line(&mut answer).unwrap();
+    assert_eq!(answer.trim(), "ok", "{line}");
+}
+
+/// Boot-up to started (configured, NMT start sent) and to the heartbeat saying Operational.
+async fn next_reconfigured(events: &mut broadcast::Receiver<SupervisorEvent>, node: u8) -> (Duration, Duration) {
+    loop {
+        match tokio::time::timeout(Duration::from_secs(10), events.recv()).await {
+            Ok(Ok(SupervisorEvent::Reconfigured { node: n, elapsed, started, .. })) if n == node => {
+                return (started.unwrap_or(elapsed), elapsed);
+            }
+            Ok(Ok(SupervisorEvent::BootFailed { message, .. })) => panic!("boot failed: {message}"),
+            Ok(Ok(_)) | Ok(Err(broadcast::error::RecvError::Lagged(_))) => {}
+            other => panic!("no reconfiguration of node {node}: {other:?}"),
+        }
+    }
+}
+
+async fn booted(events: &mut broadcast::Receiver<SupervisorEvent>, n: usize) {
+    let mut seen = 0;
+    while seen < n {
+        match tokio::time::timeout(Duration::from_secs(10), events.recv()).await {
+            Ok(Ok(SupervisorEvent::Booted { .. })) => seen += 1,
+            Ok(Ok(SupervisorEvent::BootFailed { message, .. })) => panic!("boot failed: {message}"),
+            Ok(_) => {}
+            Err(_) => panic!("the network did not boot"),
+        }
+    }
+}
+
+fn stats(name: &str, mut v: Vec<f64>) {
+    v.sort_by(f64::total_cmp);
+    let median = v[v.len() / 2];
+    println!(
+        "{name} over {} cycles: min {:.1} ms, median {:.1} ms, max {:.1} ms",
+        v.len(),
+        v[0],
+        median,
+        v[v.len() - 1]
+    );
+}
+
+async fn rounds(bus: Bus, injector: Injector, rounds: usize) {
+    let network = example();
+    let supervisor = Supervisor::new(bus.clone(), network.clone());
+    let mut events = supervisor.events();
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+    let task = tokio::spawn(supervisor.run(async move {
+        let _ = stopped.await;
+    }));
+    booted(&mut events, network.nodes.len()).await;
+    bus.start_sync(Duration::from_millis(1), 0).await.unwrap();
+    let mut times: BTreeMap<String, Vec<f64>> = BTreeMap::new();
+    for _ in 0..rounds {
+        for n in &network.nodes {
+            injector.power_cycle(n.node_id);
+            let (started, confirmed) = next_reconfigured(&mut events, n.node_id).await;
+            let name = format!("{} (node {})", n.name, n.node_id);
+            times
+                .entry(format!("{name}: boot-up -> configured and started"))
+                .or_default()
+                .push(started.as_secs_f64() * 1e3);
+            times
+                .entry(format!("{name}: boot-up -> heartbeat says Operational"))
+                .or_default()
+                .push(confirmed.as_secs_f64() * 1e3);
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+    }
+    for (name, v) in times {
+        stats(&name, v);
+    }
+    let _ = stop.send(());
+    let _ = task.await;
+}
+
+/// A small xorshift: the soak's random intervals and drives, no dependency for it.
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+}
+
+async fn soak(bus: Bus, injector: Injector, seconds: u64, min_s: f64, max_s: f64) {
+    let network = example();
+    let supervisor = Supervisor::new(bus.clone(), network.clone());
+    let mut events = supervisor.events();
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+    let task = tokio::spawn(supervisor.run(async move {
+        let _ = stopped.await;
+    }));
+    booted(&mut events, network.nodes.len()).await;
+    bus.start_sync(Duration::from_millis(1), 0).await.unwrap();
+    let mut frames = bus.frames();
+    let syncs = bus.syncs();
+    let mut rng = Rng(Instant::now().elapsed().as_nanos() as u64 | 0x9E37_79B9_7F4A_7C15);
+    let end = Instant::now() + Duration::from_secs(seconds);
+    let (mut cycles, mut reconfigured, mut wrong, mut missed, mut lagged) = (0u64, 0u64, 0u64, 0u64, 0u64);
+    let mut times = Vec::new();
+    while Instant::now() < end {
+        let wait = min_s + (max_s - min_s) * (rng.next() % 1000) as f64 / 1000.0;
+        tokio::time::sleep(Duration::from_secs_f64(wait)).await;
+        let victim = &network.nodes[(rng.next() % network.nodes.len() as u64) as usize];
+        // TPDO 2 of the others, counted from the power cycle to 100 ms after the reconfiguration.
+        // Everything older is dropped (a lagged reader resumes with what is left: drained too).
+        while let Ok(_) | Err(broadcast::error::TryRecvError::Lagged(_)) = frames.try_recv() {}
+        let sync_before = *syncs.borrow();
+        injector.power_cycle(victim.node_id);
+        cycles += 1;
+        let (_, t) = next_reconfigured(&mut events, victim.node_id).await;
+        reconfigured += 1;
+        times.push(t.as_secs_f64() * 1e3);
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        let sync_count = *syncs.borrow() - sync_before;
+        let mut tpdo2: BTreeMap<u32, u64> = BTreeMap::new();
+        loop {
+            match frames.try_recv() {
+                Ok(f) => *tpdo2.entry(f.id()).or_default() += 1,
+                Err(broadcast::error::TryRecvError::Lagged(n)) => lagged += n,
+                Err(_) => break,
+            }
+        }
+        for other in network.nodes.iter().filter(|n| n.node_id != victim.node_id) {
+            let got = tpdo2.get(&(0x280 + u32::from(other.node_id))).copied().unwrap_or(0);
+            // One at each edge of the window may fall outside it.
+            missed += sync_count.saturating_sub(got + 2);
+        }
+        if let Err(e) = verify(&bus, victim).await {
+            eprintln!("wrong configuration of {}: {e}", victim.name);
+            wrong += 1;
+        }
+    }
+    println!(
+        "soak {seconds} s: {cycles} power cycles, {cycles} reboots seen, {reconfigured} reconfigured, \
+         {wrong} wrong configurations, {missed} TPDO 2 missed on the other drives while one rebooted ({lagged} frames not seen in those windows: reader lagged)"
+    );
+    if !times.is_empty() {
+        stats("all drives: boot-up -> heartbeat says Operational", times);
+    }
+    let _ = stop.send(());
+    let _ = task.await;
+}
+
+#[tokio::main]
+async fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let num = |i: usize, default: f64| args.get(i).and_then(|a| a.parse().ok()).unwrap_or(default);
+    match args.first().map(String::as_str) {
+        Some("mem") => {
+            use drive::node::{DeviceKind, Faulty, NodeConfig, Sim};
+            let mut sim = Sim::new();
+            let mut handles = Vec::new();
+            for (kind, id) in [(DeviceKind::Drvi, 2), (DeviceKind::Drcs, 3), (DeviceKind::Akd, 4)] {
+                let node = kind
+                    .build(&NodeConfig { node_id: Some(id), ..Default::default() }, &drive::drives::DeviceApps::new())
+                    .unwrap();
+                let (faulty, handle) = Faulty::new(node);
+                sim.add(Box::new(faulty));
+                handles.push((id, handle));
+            }
+            let (bus, _sim) = drive::node::spawn_with_master(sim, Config::default(), Duration::from_micros(100));
+            tokio::time::sleep(Duration::from_millis(20)).await;
+            rounds(bus, Injector::Mem(handles), num(1, 10.0) as usize).await;
+        }
+        Some("hub") if args.len() >= 3 => {
+            let bus = Bus::open(&args[1], Config::default()).await.expect("the bus");
+            rounds(bus, Injector::Socket(PathBuf::from(&args[2])), num(3, 10.0) as usize).await;
+        }
+        Some("soak") if args.len() >= 4 => {
+            let bus = Bus::open(&args[1], Config::default()).await.expect("the bus");
+            let injector = Injector::Socket(PathBuf::from(&args[2]));
+            soak(bus, injector, num(3, 600.0) as u64, num(4, 10.0), num(5, 30.0)).await;
+        }
+        _ => {
+            eprintln!(
+                "usage: recovery mem [ROUNDS] | hub ADDR SOCKET [ROUNDS] | soak ADDR SOCKET SECONDS [MIN_S MAX_S]"
+            );
+            std::process::exit(2);
+        }
+    }
+}

@@ -1,0 +1,375 @@
+//! What the supervisor does, decided without I/O and without a clock: the policy is data
+//! ([`NodeSupervision`], [`NetworkSupervision`], from the network description or a master DCF's
+//! 1F80h/1F81h), [`decide`] turns what happened to a node into the actions to take. The async
+//! shell ([`Supervisor`](super::Supervisor)) carries them out and keeps the timers.
+
+// The same settings as the network description's `[network.supervision]` and
+// `[nodes.NAME.supervision]` (od_codegen::network::desc, read with the feature
+// `network-description`), kept here as plain data so that the supervisor needs no code
+// generator.
+
+/// What the master does about a node whose heartbeat (or guarding) is lost, or, network-wide
+/// (`on_mandatory_failure`), about a mandatory node that cannot be booted.
+/// Written `"report"`, `"reset_node"`, `"stop_all"`, `"reset_all"` in the file.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum FailureAction {
+    /// Report it; nothing is sent (the default).
+    #[default]
+    Report,
+    /// NMT reset node to that node alone: it boots again and is configured again.
+    ResetNode,
+    /// NMT stop to all nodes (CiA 302-2's 1F80h bit 6). Mandatory nodes only.
+    StopAll,
+    /// NMT reset node to all nodes (CiA 302-2's 1F80h bit 4). Mandatory nodes only.
+    ResetAll,
+}
+
+impl FailureAction {
+    /// Every action with its name in the file.
+    pub const ALL: [(FailureAction, &'static str); 4] = [
+        (FailureAction::Report, "report"),
+        (FailureAction::ResetNode, "reset_node"),
+        (FailureAction::StopAll, "stop_all"),
+        (FailureAction::ResetAll, "reset_all"),
+    ];
+
+    /// Its name in the file.
+    pub fn name(self) -> &'static str {
+        Self::ALL.iter().find(|(a, _)| *a == self).map_or("report", |(_, n)| n)
+    }
+
+    /// Whether it acts on every node, not only the failed one.
+    pub fn is_network_wide(self) -> bool {
+        matches!(self, FailureAction::StopAll | FailureAction::ResetAll)
+    }
+}
+
+/// How the master supervises one node after boot (`[nodes.NAME.supervision]`), as CiA 302-2's
+/// 1F81h (NMT slave assignment) says it. Every key is optional; the defaults are [`Default`]'s.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct NodeSupervision {
+    /// `mandatory` (default false; 1F81h bit 3): the network cannot run without it; its
+    /// failures may act on all nodes.
+    pub mandatory: bool,
+    /// `keep_alive` (default false; 1F81h bit 4): a node found operational when the master
+    /// starts is left as it is, not configured again.
+    pub keep_alive: bool,
+    /// `configure` (default true; 1F81h bit 2): the master checks its identity and writes its
+    /// configuration at boot and after each boot-up at run time.
+    pub configure: bool,
+    /// `start` (default true; 1F80h bit 3 clear): the master starts it (NMT start) once
+    /// configured; false leaves it pre-operational for the application.
+    pub start: bool,
+    /// `on_lost` (default `"report"`): what a lost heartbeat (or guarding) leads to.
+    pub on_lost: FailureAction,
+    /// `heartbeat_timeout_ms` (default: twice its 1017h producer time, plus 50 ms): the
+    /// master's heartbeat consumer time for it; 0 does not watch it.
+    pub heartbeat_timeout_ms: Option<u32>,
+    /// `guard_time_ms` (default 0: heartbeat instead): node guarding every this many ms.
+    pub guard_time_ms: u16,
+    /// `life_time_factor` (default 3): guarding requests without answer before it is lost.
+    pub life_time_factor: u8,
+    /// `reset_delay_ms` (default 500): how long a lost node has to come back before
+    /// `on_lost` acts; back within it, it is reported recovered and nothing is sent.
+    pub reset_delay_ms: u32,
+}
+
+impl Default for NodeSupervision {
+    fn default() -> Self {
+        Self {
+            mandatory: false,
+            keep_alive: false,
+            configure: true,
+            start: true,
+            on_lost: FailureAction::Report,
+            heartbeat_timeout_ms: None,
+            guard_time_ms: 0,
+            life_time_factor: 3,
+            reset_delay_ms: 500,
+        }
+    }
+}
+
+impl NodeSupervision {
+    /// From CiA 302-2's 1F81h value for the node (NMT slave assignment): bit 0 listed (not
+    /// listed: not configured nor started), bit 2 configure, bit 3 mandatory, bit 4 keep-alive,
+    /// bits 8-15 retry factor (life time factor), bits 16-31 guard time in ms. The keys not in
+    /// 1F81h keep their defaults.
+    pub fn from_1f81(value: u32) -> Self {
+        let listed = value & 1 != 0;
+        let guard = (value >> 16) as u16;
+        let retry = ((value >> 8) & 0xFF) as u8;
+        Self {
+            mandatory: listed && value & (1 << 3) != 0,
+            keep_alive: value & (1 << 4) != 0,
+            configure: listed && value & (1 << 2) != 0,
+            start: listed,
+            guard_time_ms: guard,
+            life_time_factor: if retry == 0 { 3 } else { retry },
+            ..Self::default()
+        }
+    }
+}
+
+/// How the master supervises the network as a whole (`[network.supervision]`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct NetworkSupervision {
+    /// `on_mandatory_failure` (default `"report"`): what a mandatory node that cannot be booted
+    /// (wrong identity, configuration refused, no heartbeat) does to the network.
+    pub on_mandatory_failure: FailureAction,
+    /// `boot_attempts` (default 3): how many times in a row a node's boot may fail before
+    /// `on_mandatory_failure` or `on_lost` stops acting on it (no endless reset loop).
+    pub boot_attempts: u32,
+}
+
+impl Default for NetworkSupervision {
+    fn default() -> Self {
+        Self { on_mandatory_failure: FailureAction::Report, boot_attempts: 3 }
+    }
+}
+
+impl NetworkSupervision {
+    /// From CiA 302-2's 1F80h value (NMT start-up): bit 6 stop all nodes, else bit 4 reset all
+    /// nodes, on an error of a mandatory node; neither: the node alone (reported).
+    pub fn from_1f80(value: u32) -> Self {
+        let on_mandatory_failure = if value & (1 << 6) != 0 {
+            FailureAction::StopAll
+        } else if value & (1 << 4) != 0 {
+            FailureAction::ResetAll
+        } else {
+            FailureAction::Report
+        };
+        Self { on_mandatory_failure, ..Self::default() }
+    }
+}
+
+#[cfg(feature = "network-description")]
+impl From<od_codegen::network::desc::FailureAction> for FailureAction {
+    fn from(a: od_codegen::network::desc::FailureAction) -> Self {
+        use od_codegen::network::desc::FailureAction as D;
+        match a {
+            D::Report => FailureAction::Report,
+            D::ResetNode => FailureAction::ResetNode,
+            D::StopAll => FailureAction::StopAll,
+            D::ResetAll => FailureAction::ResetAll,
+        }
+    }
+}
+
+#[cfg(feature = "network-description")]
+impl From<od_codegen::network::desc::NodeSupervision> for NodeSupervision {
+    fn from(d: od_codegen::network::desc::NodeSupervision) -> Self {
+        Self {
+            mandatory: d.mandatory,
+            keep_alive: d.keep_alive,
+            configure: d.configure,
+            start: d.start,
+            on_lost: d.on_lost.into(),
+            heartbeat_timeout_ms: d.heartbeat_timeout_ms,
+            guard_time_ms: d.guard_time_ms,
+            life_time_factor: d.life_time_factor,
+            reset_delay_ms: d.reset_delay_ms,
+        }
+    }
+}
+
+#[cfg(feature = "network-description")]
+impl From<od_codegen::network::desc::NetworkSupervision> for NetworkSupervision {
+    fn from(d: od_codegen::network::desc::NetworkSupervision) -> Self {
+        Self { on_mandatory_failure: d.on_mandatory_failure.into(), boot_attempts: d.boot_attempts }
+    }
+}
+
+/// What happened to a node, as the supervisor's loop saw it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Input {
+    /// A boot-up message at run time: the node restarted with its defaults.
+    BootUp,
+    /// Its heartbeat (or guarding) was lost.
+    Lost,
+    /// It was heard again after a loss.
+    Recovered,
+    /// The reset delay after a loss ran out and the node is still lost.
+    StillLost,
+    /// Its boot process succeeded.
+    Booted,
+    /// Its boot process failed; `failures` in a row so far, this one included.
+    BootFailed {
+        /// Consecutive failures, at least 1.
+        failures: u32,
+    },
+}
+
+/// What to do.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Action {
+    /// Run the node's boot process (identity, configuration, start rules) for it alone.
+    Configure,
+    /// Wait this many ms, then decide on [`Input::StillLost`] unless the node came back.
+    ResetAfter(u32),
+    /// NMT reset node to this node alone.
+    ResetNode,
+    /// NMT stop to all nodes.
+    StopAll,
+    /// NMT reset node to all nodes.
+    ResetAll,
+    /// Nothing more will be done for this node until it boots again (the bounded retries are
+    /// used up); reported.
+    GiveUp,
+}
+
+impl Action {
+    fn of(failure: FailureAction) -> Option<Action> {
+        match failure {
+            FailureAction::Report => None,
+            FailureAction::ResetNode => Some(Action::ResetNode),
+            FailureAction::StopAll => Some(Action::StopAll),
+            FailureAction::ResetAll => Some(Action::ResetAll),
+        }
+    }
+
+    /// Its name, as `--json` writes it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Action::Configure => "configure",
+            Action::ResetAfter(_) => "reset_after",
+            Action::ResetNode => "reset_node",
+            Action::StopAll => "stop_all",
+            Action::ResetAll => "reset_all",
+            Action::GiveUp => "give_up",
+        }
+    }
+}
+
+/// The actions for `input` on a node supervised by `node` in a network supervised by
+/// `network`. At most one action: the supervisor does one thing at a time per node.
+///
+/// - a boot-up: configure it again (unless the master does not configure it);
+/// - lost: nothing when `on_lost` is report, else wait `reset_delay_ms` ([`Action::ResetAfter`])
+///   and, still lost then, `on_lost` (a network-wide action only for a mandatory node; for an
+///   optional one it is reported only);
+/// - a failed boot: a mandatory node gets the network's `on_mandatory_failure`, an optional
+///   one is reported; once `boot_attempts` boots in a row failed, [`Action::GiveUp`]: no action
+///   that would boot it again, so a node that can never boot is never reset in a loop.
+pub fn decide(node: &NodeSupervision, network: &NetworkSupervision, input: Input) -> Option<Action> {
+    match input {
+        Input::BootUp => node.configure.then_some(Action::Configure),
+        Input::Lost => match node.on_lost {
+            FailureAction::Report => None,
+            _ => Some(Action::ResetAfter(node.reset_delay_ms)),
+        },
+        Input::StillLost => allowed(node, node.on_lost),
+        Input::Recovered | Input::Booted => None,
+        Input::BootFailed { failures } => {
+            let action = if node.mandatory { Action::of(network.on_mandatory_failure) } else { None };
+            match action {
+                Some(_) if failures >= network.boot_attempts.max(1) => Some(Action::GiveUp),
+                a => a,
+            }
+        }
+    }
+}
+
+/// `failure` for `node`: network-wide actions only for a mandatory node.
+fn allowed(node: &NodeSupervision, failure: FailureAction) -> Option<Action> {
+    if failure.is_network_wide() && !node.mandatory {
+        return None;
+    }
+    Action::of(failure)
+}
+
+/// CiA 302-2's letter for why a node's boot failed ("boot slave" error status), where one fits:
+/// `B` no answer reading 1000h, `C` 1000h differs, `D` 1018h:1 (vendor) differs, `M` 1018h:2
+/// (product) differs, `N` 1018h:3 (revision) differs, `J` configuration download failed, `K`
+/// no heartbeat in the start error control.
+pub fn reason_letter(error: &crate::boot::BootError) -> Option<char> {
+    use crate::boot::{BootError, Stage};
+    match error {
+        BootError::Identity { index: 0x1000, .. } => Some('C'),
+        BootError::Identity { index: 0x1018, sub: 1, .. } => Some('D'),
+        BootError::Identity { index: 0x1018, sub: 2, .. } => Some('M'),
+        BootError::Identity { index: 0x1018, sub: 3, .. } => Some('N'),
+        BootError::Identity { .. } => None,
+        BootError::NoHeartbeat { .. } => Some('K'),
+        BootError::Bus { stage: Stage::Identity, .. } => Some('B'),
+        BootError::Bus { stage: Stage::Configure, .. } => Some('J'),
+        BootError::Bus { stage: Stage::Nmt, .. } => None,
+    }
+}
+
+/// The master's heartbeat consumer time for a node: the description's `heartbeat_timeout_ms`,
+/// else twice its producer time plus 50 ms (one heartbeat may be late, not two); `None` when
+/// it produces no heartbeat or 0 was given.
+pub fn consumer_time_ms(node: &NodeSupervision, producer_ms: u16) -> Option<u32> {
+    let ms = node.heartbeat_timeout_ms.unwrap_or(if producer_ms == 0 { 0 } else { 2 * u32::from(producer_ms) + 50 });
+    (ms > 0).then_some(ms)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn node(mandatory: bool, on_lost: FailureAction) -> NodeSupervision {
+        NodeSupervision { mandatory, on_lost, reset_delay_ms: 200, ..NodeSupervision::default() }
+    }
+
+    #[test]
+    fn decisions() {
+        use FailureAction::*;
+        let net = |on_mandatory_failure| NetworkSupervision { on_mandatory_failure, boot_attempts: 3 };
+        #[rustfmt::skip]
+        let table: &[(bool, FailureAction, FailureAction, Input, Option<Action>)] = &[
+            // mandatory, on_lost, on_mandatory_failure, input, action
+            (false, Report, Report, Input::BootUp, Some(Action::Configure)),
+            (true, Report, ResetAll, Input::BootUp, Some(Action::Configure)),
+            (false, Report, Report, Input::Lost, None),
+            (false, ResetNode, Report, Input::Lost, Some(Action::ResetAfter(200))),
+            (false, ResetNode, Report, Input::StillLost, Some(Action::ResetNode)),
+            (false, ResetNode, Report, Input::Recovered, None),
+            (true, StopAll, Report, Input::StillLost, Some(Action::StopAll)),
+            (true, ResetAll, Report, Input::StillLost, Some(Action::ResetAll)),
+            // An optional node never acts on the others, whatever it says.
+            (false, StopAll, Report, Input::StillLost, None),
+            (false, ResetAll, ResetAll, Input::BootFailed { failures: 1 }, None),
+            (true, Report, Report, Input::BootFailed { failures: 1 }, None),
+            (true, Report, ResetNode, Input::BootFailed { failures: 1 }, Some(Action::ResetNode)),
+            (true, Report, StopAll, Input::BootFailed { failures: 1 }, Some(Action::StopAll)),
+            (true, Report, ResetAll, Input::BootFailed { failures: 2 }, Some(Action::ResetAll)),
+            (true, Report, ResetAll, Input::BootFailed { failures: 3 }, Some(Action::GiveUp)),
+            (true, Report, ResetNode, Input::BootFailed { failures: 7 }, Some(Action::GiveUp)),
+            (true, Report, Report, Input::BootFailed { failures: 7 }, None),
+            (true, Report, ResetAll, Input::Booted, None),
+        ];
+        for &(mandatory, on_lost, failure, input, want) in table {
+            let got = decide(&node(mandatory, on_lost), &net(failure), input);
+            assert_eq!(got, want, "mandatory {mandatory}, on_lost {on_lost:?}, network {failure:?}, {input:?}");
+        }
+        let unconfigured = NodeSupervision { configure: false, ..NodeSupervision::default() };
+        assert_eq!(decide(&unconfigured, &NetworkSupervision::default(), Input::BootUp), None);
+    }
+
+    #[test]
+    fn consumer_times() {
+        let d = NodeSupervision::default();
+        assert_eq!(consumer_time_ms(&d, 100), Some(250));
+        assert_eq!(consumer_time_ms(&d, 0), None);
+        let given = NodeSupervision { heartbeat_timeout_ms: Some(120), ..d };
+        assert_eq!(consumer_time_ms(&given, 100), Some(120));
+        let off = NodeSupervision { heartbeat_timeout_ms: Some(0), ..d };
+        assert_eq!(consumer_time_ms(&off, 100), None);
+    }
+
+    #[test]
+    fn cia_302_objects() {
+        // 1F81h: listed, configure, mandatory, keep-alive, retry factor 4, guard time 300 ms.
+        let n = NodeSupervision::from_1f81(0x012C_0000 | 0x0400 | 0b1_1101);
+        assert!(n.mandatory && n.keep_alive && n.configure && n.start);
+        assert_eq!((n.guard_time_ms, n.life_time_factor), (300, 4));
+        let unlisted = NodeSupervision::from_1f81(0b1_1100);
+        assert!(!unlisted.configure && !unlisted.start && !unlisted.mandatory);
+        assert_eq!(NetworkSupervision::from_1f80(0x41).on_mandatory_failure, FailureAction::StopAll);
+        assert_eq!(NetworkSupervision::from_1f80(0x51).on_mandatory_failure, FailureAction::StopAll);
+        assert_eq!(NetworkSupervision::from_1f80(0x11).on_mandatory_failure, FailureAction::ResetAll);
+        assert_eq!(NetworkSupervision::from_1f80(0x01).on_mandatory_failure, FailureAction::Report);
+    }
+}
