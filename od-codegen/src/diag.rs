@@ -31,6 +31,7 @@
 //! | G0106 | deviation | a mapping object is malformed (count or entry missing, not a number) |
 //! | G0107 | warning  | a mapping has a variable-length entry; no typed layout is generated |
 //! | G0108 | deviation | a counted mapping entry is `0x00000000` (a placeholder: nothing mapped) |
+//! | G0109 | note     | a mapping object has no communication object: a mapping table, not a PDO; no client method |
 //! | G0201 | error    | the sidecar's unit description is inconsistent with the device description |
 //! | G0202 | error    | the sidecar cannot be read (TOML or schema error, with its own location) |
 //!
@@ -73,6 +74,8 @@ pub const PDO_MALFORMED: Code = Code("G0106");
 pub const PDO_VARIABLE: Code = Code("G0107");
 /// Placeholder mapping entry `0x00000000` inside the counted range.
 pub const PDO_PLACEHOLDER: Code = Code("G0108");
+/// Mapping object without its communication object (a mapping table, not a PDO).
+pub const PDO_NO_COMM: Code = Code("G0109");
 /// Unit description inconsistent.
 pub const UNITS: Code = Code("G0201");
 /// Sidecar unreadable.
@@ -175,6 +178,15 @@ pub fn render_plain(diags: &[Diagnostic]) -> String {
         s.push('\n');
     }
     s
+}
+
+/// One diagnostic as one short line: `file:line:col: warning[G0104]: message` (no context,
+/// no hint), as a build script prints it.
+pub fn short_line(d: &Diagnostic) -> String {
+    match d.at {
+        Some(lc) => format!("{}:{}:{}: {}[{}]: {}", d.file, lc.line, lc.col, d.severity, d.code.0, d.message),
+        None => format!("{}: {}[{}]: {}", d.file, d.severity, d.code.0, d.message),
+    }
 }
 
 /// The codes of deviations: warnings in lenient mode, errors in strict mode (see the module

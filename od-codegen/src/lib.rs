@@ -321,6 +321,48 @@ fn expand_with(model: &Model, options: &Options, parts: &mut text::Parts) -> (To
     (tokens, diagnostics)
 }
 
+/// The generator's diagnostics for `model` with `options`, without generating anything: what
+/// [`expand`] and [`expand_text`] report, in the same order (`odgen check` adds them to the
+/// reader's, so a build and `odgen check` say the same things about a file).
+pub fn diagnose(model: &Model, options: &Options) -> Vec<Diagnostic> {
+    let mut sink = diag::Sink::new(&options.source_name, options.strict);
+    if syn::parse_str::<syn::Ident>(&options.module).is_err() {
+        sink.general(
+            Severity::Error,
+            diag::BAD_MODULE_NAME,
+            format!("module name `{}` is not a Rust identifier; using `device`", options.module),
+        );
+    }
+    let plan = plan::build(model, options, &mut sink);
+    let keys: Vec<(u16, u8)> = plan.entries.iter().map(|e| (e.index, e.sub)).collect();
+    if lookup::tokens(&keys).is_none() {
+        // As `emit::tables` says it.
+        sink.general(
+            Severity::Error,
+            diag::TOO_MANY_OBJECTS,
+            format!(
+                "the device has more than {} objects, or objects in more than {} ranges of 256 \
+                 indices; the generated lookup table cannot number them",
+                lookup::MAX_OBJECTS,
+                lookup::MAX_PAGES
+            ),
+        );
+    }
+    pdo::check_layouts(model, &plan, &mut sink);
+    if let Some(sc) = &options.sidecar {
+        let _ = units::module(model, &plan, sc, &mut sink);
+    }
+    let mut diagnostics = sink.out;
+    diagnostics.sort_by_key(|d| d.at.map(|a| (a.line, a.col)));
+    diagnostics
+}
+
+/// Whether a diagnostic is shown when the codes in `allowed` are allowed: errors always are;
+/// a warning or note is not when its code is allowed (as rustc's and clippy's `allow`).
+pub fn shown(d: &Diagnostic, allowed: &[String]) -> bool {
+    d.severity == Severity::Error || !allowed.iter().any(|a| a.eq_ignore_ascii_case(d.code.0))
+}
+
 /// The first line of a generated file: the generator and the description it was generated
 /// from (as given: the [`Builder`] names it relative to the crate, never by an absolute path).
 pub fn header(source_name: &str) -> String {
