@@ -105,6 +105,7 @@ mod lookup;
 pub mod network;
 pub mod pdo;
 mod plan;
+pub mod standard;
 mod support;
 mod text;
 pub mod units;
@@ -258,6 +259,7 @@ pub fn expand_text(model: &Model, options: &Options) -> GeneratedText {
 }
 
 fn expand_with(model: &Model, options: &Options, parts: &mut text::Parts) -> (TokenStream, Vec<Diagnostic>) {
+    let options = &with_standard_units(model, options);
     let mut sink = diag::Sink::new(&options.source_name, options.strict);
     let module = match syn::parse_str::<syn::Ident>(&options.module) {
         Ok(_) => format_ident!("{}", options.module),
@@ -292,7 +294,7 @@ fn expand_with(model: &Model, options: &Options, parts: &mut text::Parts) -> (To
     };
     let product = model.device_info.product_name.as_deref().unwrap_or(&options.source_name);
     let client = if options.client {
-        client::module(model, &plan, options.sidecar.as_ref().filter(|_| !units.is_empty()), product)
+        client::module(model, &plan, options.sidecar.as_ref(), !units.is_empty(), product)
     } else {
         TokenStream::new()
     };
@@ -325,6 +327,7 @@ fn expand_with(model: &Model, options: &Options, parts: &mut text::Parts) -> (To
 /// [`expand`] and [`expand_text`] report, in the same order (`odgen check` adds them to the
 /// reader's, so a build and `odgen check` say the same things about a file).
 pub fn diagnose(model: &Model, options: &Options) -> Vec<Diagnostic> {
+    let options = &with_standard_units(model, options);
     let mut sink = diag::Sink::new(&options.source_name, options.strict);
     if syn::parse_str::<syn::Ident>(&options.module).is_err() {
         sink.general(
@@ -355,6 +358,14 @@ pub fn diagnose(model: &Model, options: &Options) -> Vec<Diagnostic> {
     let mut diagnostics = sink.out;
     diagnostics.sort_by_key(|d| d.at.map(|a| (a.line, a.col)));
     diagnostics
+}
+
+/// `options` with the sidecar the generator uses ([`standard::effective_sidecar`]): the given
+/// one with CiA 402's dimensions added, or one derived from the file's CiA 402 objects.
+fn with_standard_units(model: &Model, options: &Options) -> Options {
+    let mut o = options.clone();
+    o.sidecar = standard::effective_sidecar(model, options.sidecar.as_ref(), &options.source_name);
+    o
 }
 
 /// Whether a diagnostic is shown when the codes in `allowed` are allowed: errors always are;

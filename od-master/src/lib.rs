@@ -25,6 +25,7 @@ pub mod bus;
 pub mod error;
 pub mod event;
 pub mod node;
+pub mod profile;
 pub mod remote;
 
 pub use axis::{Axis, AxisConfig, Homing, HomingMethod, Move, UnitAxis};

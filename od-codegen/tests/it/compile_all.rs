@@ -192,6 +192,11 @@ fn every_description_generates_a_client_that_compiles_with_warnings_denied() {
     std::fs::create_dir_all(&src).unwrap();
     let mut builder = Builder::new().cargo_metadata(false).client(true).out_dir(&src);
     let mut modules = Vec::new();
+    // The vendor files' own methods of CiA 402's motion objects, typed by dimension without a
+    // sidecar, and a program written once against the standard names, used with every drive's
+    // client (the corpus's CiA 402 files, the project's DRVI, DRCS and AKD).
+    let mut standard_users = String::new();
+    let mut drives = Vec::new();
     for (i, f) in files.iter().enumerate() {
         let parsed = eds::read_file(f, &eds::Options::lenient()).unwrap();
         if parsed.has_errors() {
@@ -199,11 +204,16 @@ fn every_description_generates_a_client_that_compiles_with_warnings_denied() {
         }
         let m = module_name(i, f);
         builder = builder.device(&m, f).no_sidecar();
+        standard_users.push_str(&typed_by_dimension(&m, &parsed.model));
+        if od_codegen::standard::has_cia402(&parsed.model) {
+            drives.push(m.clone());
+        }
         modules.push(m);
     }
     for (m, file) in [("drvi", "camozzi-drvi.eds"), ("drcs", "camozzi-drcs.eds"), ("akd", "kollmorgen-akd.eds")] {
         builder = builder.device(m, root.join("devices").join(file));
         modules.push(m.to_owned());
+        drives.push(m.to_owned());
     }
     let mut failures = Vec::new();
     for r in builder.generate_each() {
@@ -233,6 +243,13 @@ fn every_description_generates_a_client_that_compiles_with_warnings_denied() {
     for m in &modules {
         lib.push_str(&format!("include!(\"{m}.rs\");\n"));
     }
+    lib.push_str(STANDARD_USER);
+    lib.push_str("\n/// Every drive's client through the one program.\npub fn every_drive() {\n");
+    for d in &drives {
+        lib.push_str(&format!("    let _ = standard_user::move_to::<{d}::remote::Remote>;\n"));
+    }
+    lib.push_str("}\n");
+    lib.push_str(&standard_users);
     od_codegen::write_if_changed(&src.join("lib.rs"), &lib).unwrap();
     let manifest = format!(
         "[package]\nname = \"od-codegen-compile-all-client\"\nversion = \"0.0.0\"\nedition = \"2024\"\npublish = false\n\n\
@@ -251,4 +268,52 @@ fn every_description_generates_a_client_that_compiles_with_warnings_denied() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     println!("{} clients, checked in {:.1?}", modules.len(), started.elapsed());
     assert!(out.status.success(), "the generated clients do not compile (crate at {}):\n{stderr}", krate.display());
+}
+
+/// A program written once against the standard names (`od_master::profile`), for any drive.
+const STANDARD_USER: &str = r#"
+/// Written against the standard names only.
+pub mod standard_user {
+    use od_master::profile::Cia402;
+    use od_master::remote::{Quantity, Scaling, dim};
+
+    /// Sets the profile velocity, moves, reads the state and the identity.
+    pub async fn move_to<D: Cia402>(
+        drive: &D,
+        units: &dyn Scaling,
+        to: Quantity<dim::Position>,
+        speed: Quantity<dim::Velocity>,
+    ) -> Result<u16, od_master::Error> {
+        drive.profile_velocity()?.write_in(units, speed).await?;
+        drive.target_position()?.write_in(units, to).await?;
+        drive.controlword()?.write(0x003F).await?;
+        let _at: Quantity<dim::Position> = drive.position_actual_value()?.read_in(units).await?;
+        let _vendor = drive.vendor_id()?.read().await?;
+        drive.statusword()?.read().await
+    }
+
+    /// Takes only a handle of a position.
+    pub fn position<T, A>(_: &od_master::remote::Object<'_, T, A, dim::Position>) {}
+    /// Takes only a handle of a velocity.
+    pub fn velocity<T, A>(_: &od_master::remote::Object<'_, T, A, dim::Velocity>) {}
+}
+"#;
+
+/// For a description's module `m`: a function that hands its own methods of 607Ah, 6064h
+/// (positions) and 60FFh, 6081h (velocities) to functions that take only handles of that
+/// dimension, so the crate compiles only if they are typed by dimension (no sidecar).
+fn typed_by_dimension(m: &str, model: &eds::model::Model) -> String {
+    let names = od_codegen::accessor_names(model);
+    let name = |index: u16| names.iter().find(|(i, s, _)| *i == index && *s == 0).map(|(_, _, n)| n.clone());
+    let mut body = String::new();
+    for (index, check) in [(0x607A, "position"), (0x6064, "position"), (0x60FF, "velocity"), (0x6081, "velocity")] {
+        let integer = model.entry(index, 0).is_some_and(|e| e.data_type.bits().is_some_and(|b| b > 1 && b <= 64) && !matches!(e.data_type, eds::model::DataType::Real32 | eds::model::DataType::Real64));
+        if let Some(n) = name(index).filter(|_| integer) {
+            body.push_str(&format!("    standard_user::{check}(&r.{n}());\n"));
+        }
+    }
+    if body.is_empty() {
+        return String::new();
+    }
+    format!("\n/// `{m}`'s motion objects, typed by dimension.\npub fn typed_{m}(r: &{m}::remote::Remote) {{\n{body}}}\n")
 }
