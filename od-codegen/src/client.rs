@@ -162,7 +162,9 @@ pub(crate) fn module(
         let dim = Some(())
             .filter(|_| e.ty.is_int() && e.ty != Ty::Bool)
             .and_then(|_| {
-                sidecar.and_then(|sc| sc.dimension_of(e.index, e.sub)).or_else(|| crate::standard::dimension(e.index, e.sub))
+                sidecar
+                    .and_then(|sc| sc.dimension_of(e.index, e.sub))
+                    .or_else(|| crate::standard::dimension(e.index, e.sub))
             })
             .map(|d| format_ident!("{d:?}"));
         let (lim, lim_doc) = limits(e);

@@ -201,8 +201,7 @@ pub fn effective_sidecar(model: &Model, given: Option<&Sidecar>, source_name: &s
     match given {
         Some(sc) => {
             let mut sc = sc.clone();
-            let dims: Vec<Dimension> =
-                sc.unit_systems.iter().flat_map(|s| s.units.keys().copied()).collect::<Vec<_>>();
+            let dims: Vec<Dimension> = sc.unit_systems.iter().flat_map(|s| s.units.keys().copied()).collect::<Vec<_>>();
             for o in OBJECTS {
                 let Some(d) = o.dimension else { continue };
                 let Some(e) = model.entry(o.index, o.sub) else { continue };

@@ -197,6 +197,9 @@ fn every_description_generates_a_client_that_compiles_with_warnings_denied() {
     // client (the corpus's CiA 402 files, the project's DRVI, DRCS and AKD).
     let mut standard_users = String::new();
     let mut drives = Vec::new();
+    // Each corpus module's objects, to check that every PDO method has both its objects.
+    let mut pdo_objects: std::collections::BTreeMap<String, std::collections::BTreeSet<u16>> = Default::default();
+    let mut pdo_methods = 0;
     for (i, f) in files.iter().enumerate() {
         let parsed = eds::read_file(f, &eds::Options::lenient()).unwrap();
         if parsed.has_errors() {
@@ -205,6 +208,7 @@ fn every_description_generates_a_client_that_compiles_with_warnings_denied() {
         let m = module_name(i, f);
         builder = builder.device(&m, f).no_sidecar();
         standard_users.push_str(&typed_by_dimension(&m, &parsed.model));
+        pdo_objects.insert(m.clone(), parsed.model.objects.keys().map(|i| i.0).collect());
         if od_codegen::standard::has_cia402(&parsed.model) {
             drives.push(m.clone());
         }
@@ -219,12 +223,27 @@ fn every_description_generates_a_client_that_compiles_with_warnings_denied() {
     for r in builder.generate_each() {
         match r {
             Ok(o) => {
+                if let Some(objects) = pdo_objects.get(&o.module) {
+                    for (comm, mapping) in pdo_methods_objects(&o.text) {
+                        pdo_methods += 1;
+                        for index in [comm, mapping] {
+                            if !objects.contains(&index) {
+                                failures.push(format!(
+                                    "{}: a PDO method whose object {index:04X}h is not in the description",
+                                    o.module
+                                ));
+                            }
+                        }
+                    }
+                }
                 od_codegen::write_if_changed(&src.join(&o.file_name), &o.text).unwrap();
             }
             Err(e) => failures.push(e.to_string()),
         }
     }
     assert!(failures.is_empty(), "client generation failed:\n{}", failures.join("\n\n"));
+    assert!(pdo_methods > 0 || corpus().is_none(), "the corpus gives PDO methods");
+    println!("{pdo_methods} PDO methods of corpus clients, each with its communication and mapping objects");
     let random_models: u64 = std::env::var("ODCODEGEN_RANDOM_MODELS").ok().and_then(|n| n.parse().ok()).unwrap_or(40);
     for seed in 0..random_models {
         let m = format!("random_{seed:02}");
@@ -307,7 +326,10 @@ fn typed_by_dimension(m: &str, model: &eds::model::Model) -> String {
     let name = |index: u16| names.iter().find(|(i, s, _)| *i == index && *s == 0).map(|(_, _, n)| n.clone());
     let mut body = String::new();
     for (index, check) in [(0x607A, "position"), (0x6064, "position"), (0x60FF, "velocity"), (0x6081, "velocity")] {
-        let integer = model.entry(index, 0).is_some_and(|e| e.data_type.bits().is_some_and(|b| b > 1 && b <= 64) && !matches!(e.data_type, eds::model::DataType::Real32 | eds::model::DataType::Real64));
+        let integer = model.entry(index, 0).is_some_and(|e| {
+            e.data_type.bits().is_some_and(|b| b > 1 && b <= 64)
+                && !matches!(e.data_type, eds::model::DataType::Real32 | eds::model::DataType::Real64)
+        });
         if let Some(n) = name(index).filter(|_| integer) {
             body.push_str(&format!("    standard_user::{check}(&r.{n}());\n"));
         }
@@ -315,5 +337,29 @@ fn typed_by_dimension(m: &str, model: &eds::model::Model) -> String {
     if body.is_empty() {
         return String::new();
     }
-    format!("\n/// `{m}`'s motion objects, typed by dimension.\npub fn typed_{m}(r: &{m}::remote::Remote) {{\n{body}}}\n")
+    format!(
+        "\n/// `{m}`'s motion objects, typed by dimension.\npub fn typed_{m}(r: &{m}::remote::Remote) {{\n{body}}}\n"
+    )
+}
+
+/// The communication and mapping objects of each PDO a generated client has a method for
+/// (from its `PdoLayout` impls: `DIRECTION` and `NUMBER`).
+fn pdo_methods_objects(text: &str) -> Vec<(u16, u16)> {
+    let mut out = Vec::new();
+    for block in text.split("impl ::od_master::remote::PdoLayout for").skip(1) {
+        let receive = block
+            .split("const DIRECTION: ::od_runtime::pdo::Direction = ::od_runtime::pdo::Direction::")
+            .nth(1)
+            .expect("a PdoLayout impl has DIRECTION")
+            .starts_with("Receive");
+        let number: u16 = block
+            .split("const NUMBER: u16 = ")
+            .nth(1)
+            .and_then(|r| r.split(';').next())
+            .and_then(|n| n.trim().parse().ok())
+            .expect("a PdoLayout impl has NUMBER");
+        let n = number - 1;
+        out.push(if receive { (0x1400 + n, 0x1600 + n) } else { (0x1800 + n, 0x1A00 + n) });
+    }
+    out
 }

@@ -146,8 +146,11 @@ pub fn render(sc: &Sidecar, model: &eds::Model) -> String {
             let _ = writeln!(t, "description = {}", toml_str(d));
         }
         if !s.when.is_empty() {
-            let conds: Vec<String> =
-                s.when.iter().map(|c| format!("{{ object = \"{}\", equals = \"0x{:X}\" }}", c.object, c.equals.0)).collect();
+            let conds: Vec<String> = s
+                .when
+                .iter()
+                .map(|c| format!("{{ object = \"{}\", equals = \"0x{:X}\" }}", c.object, c.equals.0))
+                .collect();
             let _ = writeln!(t, "when = [{}]", conds.join(", "));
         }
         t.push_str("[unit_system.units]\n");
