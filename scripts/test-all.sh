@@ -22,6 +22,16 @@ step "Python venv (python-canopen, python-can, pytest)"
 PYTHON=$("$root/scripts/venv.sh")
 export ODGEN_PYTHON="$PYTHON"
 
+# The library od-master builds without the command line's dependencies and without the code
+# generator (the CLI is the package od-master-cli); proc macros' own dependencies do not count.
+step "od-master's library: no clap, no code generator in its build"
+lib_deps=$(cargo tree -p od-master -e normal,no-proc-macro --prefix none --locked)
+if bad=$(grep -E '^(clap|clap_builder|syn|quote|proc-macro2|prettyplease|od-codegen) ' <<<"$lib_deps"); then
+  echo "od-master's library depends on what only the command line or the generator needs:" >&2
+  echo "$bad" | sort -u >&2
+  exit 1
+fi
+
 step "cargo fmt --check"
 cargo fmt --all -- --check
 

@@ -8,6 +8,7 @@
 
 pub mod ast;
 pub mod codes;
+pub mod concise;
 pub mod diag;
 pub mod encoding;
 pub mod lex;

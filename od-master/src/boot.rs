@@ -34,7 +34,7 @@ use od_bus::CanFrame;
 use tokio::sync::broadcast;
 use tokio::time::Instant;
 
-use od_codegen::network::concise::{self, Plan, Role};
+use eds::concise::{self, Plan, Role};
 use od_runtime::master::nmt::Target;
 use od_runtime::{NmtCommand, NodeId};
 
@@ -112,6 +112,10 @@ impl Network {
     }
 
     /// A network from a description file (device paths relative to it).
+    ///
+    /// Needs the feature `network-description` (it reads the description with the code
+    /// generator's `od_codegen::network`, which names objects as generated code does); without
+    /// it, the error says so.
     pub fn from_description(path: &Path) -> Result<Self, LoadError> {
         let text =
             std::fs::read_to_string(path).map_err(|error| LoadError::Io { path: path.display().to_string(), error })?;
@@ -121,6 +125,7 @@ impl Network {
 
     /// A network from a description's text: `display` names it in messages, device paths are
     /// relative to `dir`.
+    #[cfg(feature = "network-description")]
     pub fn from_description_text(display: &str, dir: &Path, text: &str) -> Result<Self, LoadError> {
         let outcome = od_codegen::network::build(display, dir, text);
         if outcome.has_errors() {
@@ -135,6 +140,18 @@ impl Network {
             }
         }
         if problems.is_empty() { Ok(net) } else { Err(LoadError::Invalid(problems.join("\n"))) }
+    }
+
+    /// A network from a description's text: `display` names it in messages, device paths are
+    /// relative to `dir`. This build has no feature `network-description`: always an error
+    /// that says so (DCFs load without it, through [`Network::load`]).
+    #[cfg(not(feature = "network-description"))]
+    pub fn from_description_text(display: &str, dir: &Path, text: &str) -> Result<Self, LoadError> {
+        let _ = (dir, text);
+        Err(LoadError::Invalid(format!(
+            "{display}: reading a network description needs od-master's feature `network-description` \
+             (od-master = {{ version = \"...\", features = [\"network-description\"] }}); DCFs load without it"
+        )))
     }
 
     /// One node from its DCF: the node id from `[DeviceComissioning]` `NodeID`.

@@ -478,7 +478,7 @@ pub enum UnitError {
 }
 
 fn unit_symbol(u: Unit) -> &'static str {
-    od_codegen::units::unit_symbol(u)
+    u.symbol()
 }
 
 /// A device's unit conversions: the generated `units::Units` implements it, built from the

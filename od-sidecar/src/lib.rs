@@ -360,6 +360,48 @@ pub enum Unit {
     HundredMicroseconds,
 }
 
+impl Unit {
+    /// The symbol a sidecar writes for the unit (`deg`, `mm/s`, `user/s^2`, ...), as its
+    /// `serde` name.
+    pub fn symbol(self) -> &'static str {
+        match self {
+            Unit::Degree => "deg",
+            Unit::Revolution => "rev",
+            Unit::Millimeter => "mm",
+            Unit::Inch => "in",
+            Unit::Increment => "inc",
+            Unit::Microstep => "ustep",
+            Unit::UserUnit => "user",
+            Unit::Rpm => "rpm",
+            Unit::DegreePerSecond => "deg/s",
+            Unit::MillimeterPerSecond => "mm/s",
+            Unit::InchPerSecond => "in/s",
+            Unit::IncrementPerSecond => "inc/s",
+            Unit::MicrostepPerSecond => "ustep/s",
+            Unit::UserUnitPerSecond => "user/s",
+            Unit::RpmPerSecond => "rpm/s",
+            Unit::DegreePerSecond2 => "deg/s^2",
+            Unit::MillimeterPerSecond2 => "mm/s^2",
+            Unit::InchPerSecond2 => "in/s^2",
+            Unit::IncrementPerSecond2 => "inc/s^2",
+            Unit::MicrostepPerSecond2 => "ustep/s^2",
+            Unit::UserUnitPerSecond2 => "user/s^2",
+            Unit::MilliAmpere => "mA",
+            Unit::Ampere => "A",
+            Unit::MilliAmperePerSecond => "mA/s",
+            Unit::PermilleRatedTorque => "permille_rated_torque",
+            Unit::PermilleRatedCurrent => "permille_rated_current",
+            Unit::PermilleRatedTorquePerSecond => "permille_rated_torque/s",
+            Unit::NewtonMeter => "Nm",
+            Unit::Second => "s",
+            Unit::Millisecond => "ms",
+            Unit::Microsecond => "us",
+            Unit::Nanosecond => "ns",
+            Unit::HundredMicroseconds => "100us",
+        }
+    }
+}
+
 /// An exact positive ratio `num/den`, written `"1/100"`, `"1000"` or `"1"`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Ratio {

@@ -32,7 +32,7 @@ SIZE = 10 * 1024
 def od_master():
     path = Path(os.environ.get("OD_MASTER") or ROOT / "target" / "debug" / "od-master")
     if not path.is_file():
-        missing(f"od-master binary not found at {path} (set OD_MASTER or run `cargo build -p od-master`)")
+        missing(f"od-master binary not found at {path} (set OD_MASTER or run `cargo build -p od-master-cli`)")
     return path
 
 

@@ -27,7 +27,7 @@ VENDORS = {2: 0x97, 3: 0x151, 4: 0x6A}
 def od_master():
     path = Path(os.environ.get("OD_MASTER") or ROOT / "target" / "debug" / "od-master")
     if not path.is_file():
-        missing(f"od-master binary not found at {path} (set OD_MASTER or run `cargo build -p od-master`)")
+        missing(f"od-master binary not found at {path} (set OD_MASTER or run `cargo build -p od-master-cli`)")
     return path
 
 

@@ -48,7 +48,9 @@
 //! `ParameterValue` (`0x00000182` for node 2), while its `DefaultValue` keeps `$NODEID+0x180`.
 //! Nothing is written when anything is wrong.
 
-pub mod concise;
+/// The writes of a concise DCF: `eds::concise`, beside the reader, so that a master boots
+/// from DCFs without the generator.
+pub use eds::concise;
 pub mod desc;
 pub mod diag;
 pub mod names;

@@ -3,8 +3,6 @@
 
 mod axis;
 mod boot;
-mod boot_cli;
-mod cli;
 mod client;
 mod client_ui;
 mod events;

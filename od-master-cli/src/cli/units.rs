@@ -44,7 +44,7 @@ pub fn to_raw(
         .ok_or_else(|| format!("the sidecar of {} gives no unit system", sidecar.device.name))?;
     let spec =
         system.units.get(&dim).ok_or_else(|| format!("the unit system `{}` gives no unit of {dim:?}", system.name))?;
-    let symbol = od_codegen::units::unit_symbol(spec.unit);
+    let symbol = spec.unit.symbol();
     if unit != symbol {
         return Err(format!(
             "the drive's {dim:?} values are in {symbol} (unit system `{}`), not {unit}; give {symbol} or raw units",

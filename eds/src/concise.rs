@@ -25,7 +25,7 @@
 //! mapping it is given when that equals the default, and writes every `sdo` entry given when
 //! that equals the default (`scripts/dcfgen-compare.py` lists the differences).
 
-use eds::model::{DataType, Entry, Model, Value};
+use crate::model::{DataType, Entry, Model, Value};
 
 /// What one write of the plan is for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -137,7 +137,7 @@ pub fn identity(model: &Model, node_id: u8) -> Identity {
 }
 
 fn entry(model: &Model, index: u16, sub: u8) -> Option<&Entry> {
-    model.objects.get(&eds::model::Index(index))?.subs.get(&eds::model::SubIndex(sub))
+    model.objects.get(&crate::model::Index(index))?.subs.get(&crate::model::SubIndex(sub))
 }
 
 /// The bytes of `value` as `data_type` carries it on the bus.

@@ -13,9 +13,12 @@ use drive::node::{DeviceKind, MonotonicClock, run};
 use od_bus::{Hub, HubConfig};
 use serde_json::Value;
 
-use crate::harness::node;
-
 const DRVI_EDS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../devices/camozzi-drvi.eds");
+
+fn node(kind: DeviceKind, id: u8) -> Box<dyn drive::node::AnyNode> {
+    kind.build(&drive::node::NodeConfig { node_id: Some(id), ..Default::default() }, &drive::drives::DeviceApps::new())
+        .expect("a simulated node")
+}
 
 /// A hub on a port the OS picks, with drives running on it in real time.
 pub(crate) struct Rig {

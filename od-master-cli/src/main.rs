@@ -4,7 +4,6 @@
 //! Exit codes: 0 ok, 1 an SDO abort, a timeout or a failed drive operation (one line naming
 //! the node and the object), 2 bad usage or a bus that cannot be opened.
 
-#[path = "../cli/mod.rs"]
 mod cli;
 
 use std::collections::BTreeMap;
