@@ -193,9 +193,9 @@ pub fn has_cia402(model: &Model) -> bool {
     OBJECTS.iter().any(|o| o.profile == P402 && model.entry(o.index, o.sub).is_some())
 }
 
-/// The sidecar the generator uses: `given` with the dimensions CiA 402 gives the file's
-/// objects added where it names none (only dimensions its unit systems have units for, so the
-/// generated code stays consistent); without a sidecar, [`starting_sidecar`] when the file has
+/// The sidecar the generator uses: `given` with the positions, velocities and accelerations
+/// of CiA 402 added where it names none (only dimensions its unit systems have units for, so
+/// the generated code stays consistent); without a sidecar, [`starting_sidecar`] when the file has
 /// dimensioned CiA 402 objects.
 pub fn effective_sidecar(model: &Model, given: Option<&Sidecar>, source_name: &str) -> Option<Sidecar> {
     match given {
@@ -205,7 +205,12 @@ pub fn effective_sidecar(model: &Model, given: Option<&Sidecar>, source_name: &s
             for o in OBJECTS {
                 let Some(d) = o.dimension else { continue };
                 let Some(e) = model.entry(o.index, o.sub) else { continue };
-                if !is_int(e.data_type) || !dims.contains(&d) || sc.dimension_of(o.index, o.sub).is_some() {
+                // Positions, velocities and accelerations are all in the drive's configured
+                // units (CiA 402's factor group), so the sidecar's units for them hold for every
+                // such object; a torque or current object's unit is its own (thousandths of the
+                // rated value, or mA), which only the sidecar can say.
+                let shared = matches!(d, Dimension::Position | Dimension::Velocity | Dimension::Acceleration);
+                if !shared || !is_int(e.data_type) || !dims.contains(&d) || sc.dimension_of(o.index, o.sub).is_some() {
                     continue;
                 }
                 sc.dimensions.insert(ObjRef { index: o.index, sub: Some(o.sub) }, d);
@@ -364,7 +369,7 @@ pub fn starting_sidecar(model: &Model, source_name: &str) -> Option<Sidecar> {
         ScalingKind::EncoderResolution,
         "encoder_increments",
         "motor_revolutions",
-        "increments = position_user * encoder_increments / motor_revolutions * gear * / feed",
+        "increments = motor_revolutions * encoder_increments / motor_revolutions",
     ));
     scaling.extend(factor(
         0x6091,
