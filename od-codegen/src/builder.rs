@@ -208,6 +208,13 @@ impl Builder {
     }
 
     /// Uses `path` as the sidecar of the device added last.
+    ///
+    /// A device's sidecar serves any file of the same drive: a vendor's own EDS of a drive the
+    /// project describes gets the project's units with
+    /// `.device("akd", "vendor/AKD.eds").sidecar("devices/kollmorgen-akd.toml")` (the sidecar
+    /// refers to objects by index, so the vendor's names do not matter; an object the file
+    /// lacks is a G0201 error naming it). For a drive no sidecar describes, `odgen sidecar
+    /// FILE -o FILE.toml` writes a starting one from the file's CiA 402 objects.
     pub fn sidecar(mut self, path: impl AsRef<Path>) -> Self {
         if let Some(d) = self.devices.last_mut() {
             d.sidecar = SidecarSource::Path(path.as_ref().to_path_buf());
@@ -215,7 +222,9 @@ impl Builder {
         self
     }
 
-    /// Generates the device added last without a sidecar (no `units` module).
+    /// Generates the device added last without a sidecar file: a file with CiA 402 objects
+    /// still gets its `units` module and dimensions, from its own unit objects
+    /// (`od_codegen::standard::starting_sidecar`); other files get none.
     pub fn no_sidecar(mut self) -> Self {
         if let Some(d) = self.devices.last_mut() {
             d.sidecar = SidecarSource::None;

@@ -158,14 +158,12 @@ pub(crate) fn module(
     for e in &plan.entries {
         let Some(w) = wire(e.dt) else { continue };
         let (acc, acc_name) = access(e.entry.access);
-        // The sidecar's dimension, else the one CiA 402 gives the object.
-        let dim = Some(())
+        // The dimension of the generator's sidecar: the given one with CiA 402's positions,
+        // velocities and accelerations added, or the one derived from the file's CiA 402
+        // objects (`standard::effective_sidecar`).
+        let dim = sidecar
             .filter(|_| e.ty.is_int() && e.ty != Ty::Bool)
-            .and_then(|_| {
-                sidecar
-                    .and_then(|sc| sc.dimension_of(e.index, e.sub))
-                    .or_else(|| crate::standard::dimension(e.index, e.sub))
-            })
+            .and_then(|sc| sc.dimension_of(e.index, e.sub))
             .map(|d| format_ident!("{d:?}"));
         let (lim, lim_doc) = limits(e);
         let f = format_ident!("{}", e.field);

@@ -139,7 +139,10 @@ pub struct Options {
     /// The device description's text, emitted as `pub const EDS: &str` (line ends normalised
     /// to `\n`); no `EDS` constant if `None`.
     pub eds_text: Option<String>,
-    /// The device sidecar, for unit conversions (no `units` module without it).
+    /// The device sidecar, for unit conversions. Without one, a description with CiA 402
+    /// objects gets the units derived from them ([`standard::starting_sidecar`]); with one,
+    /// CiA 402's positions, velocities and accelerations it does not name are added
+    /// ([`standard::effective_sidecar`]).
     pub sidecar: Option<crate::sidecar::Sidecar>,
     /// Smallest capacity of a string or byte buffer, in bytes.
     pub min_capacity: usize,
@@ -287,6 +290,7 @@ fn expand_with(model: &Model, options: &Options, parts: &mut text::Parts) -> (To
     let tables = emit::tables(&plan, &options.names, &mut sink, parts);
     let dictionary = emit::dictionary(model, &plan, &options.names, options.sidecar.as_ref(), parts);
     let device = emit::device_type(model, &plan);
+    let aliases = standard::dictionary_aliases(&plan);
     let pdo = pdo::module(model, &plan, &mut sink);
     let units = match &options.sidecar {
         Some(sc) => units::module(model, &plan, sc, &mut sink),
@@ -312,6 +316,7 @@ fn expand_with(model: &Model, options: &Options, parts: &mut text::Parts) -> (To
             #index
             #tables
             #dictionary
+            #aliases
             #device
             #pdo
             #units

@@ -499,3 +499,59 @@ mod tests {
         assert_eq!(names.len(), OBJECTS.len());
     }
 }
+
+/// `impl Dictionary { … }`: each standard object of the file under the standard's name (getter
+/// and `set_` setter calling the vendor-named ones), where the file's entry has the standard's
+/// type and the standard's name is not already an accessor (of this object: the same name; of
+/// another: the vendor's name wins). Empty when no alias is needed.
+pub(crate) fn dictionary_aliases(plan: &crate::plan::Plan<'_>) -> proc_macro2::TokenStream {
+    use quote::{format_ident, quote};
+    let taken: std::collections::BTreeSet<&str> = plan.entries.iter().map(|e| e.field.as_str()).collect();
+    let mut items = Vec::new();
+    for o in OBJECTS {
+        let Some(e) = plan.entries.iter().find(|e| e.index == o.index && e.sub == o.sub) else { continue };
+        if !e.ty.is_int() || e.dt != o.data_type || e.field == o.name {
+            continue;
+        }
+        let setter = format!("set_{}", o.name);
+        if taken.contains(o.name)
+            || taken.contains(setter.as_str())
+            || o.name.strip_prefix("set_").is_some_and(|n| taken.contains(n))
+        {
+            continue;
+        }
+        let (std, set_std) = (format_ident!("{}", o.name), format_ident!("{setter}"));
+        let (g, s) = (format_ident!("{}", e.field), format_ident!("set_{}", e.field));
+        let ty = crate::entry::rust_type(e.ty);
+        let get_doc = crate::lit::doc(&[format!(
+            "`0x{:04X}` sub {} under the standard's name (the file's [`Self::{}`]).",
+            o.index, o.sub, e.field
+        )]);
+        let set_doc = crate::lit::doc(&[format!(
+            "Sets `0x{:04X}` sub {} under the standard's name (the file's [`Self::set_{}`]).",
+            o.index, o.sub, e.field
+        )]);
+        items.push(quote! {
+            #get_doc
+            #[inline]
+            pub fn #std(&self) -> #ty {
+                self.#g()
+            }
+            #set_doc
+            #[inline]
+            pub fn #set_std(&mut self, v: #ty) -> Result<(), ::od_runtime::od::AbortCode> {
+                self.#s(v)
+            }
+        });
+    }
+    if items.is_empty() {
+        return proc_macro2::TokenStream::new();
+    }
+    quote! {
+        /// The standard objects (CiA 301, CiA 402) the file names otherwise, under the
+        /// standard's names.
+        impl Dictionary {
+            #(#items)*
+        }
+    }
+}

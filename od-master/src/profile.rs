@@ -10,17 +10,18 @@
 //! give (0602 0000h "object does not exist", 0607 0010h "data type does not match"), before
 //! anything is sent.
 //!
-//! ```ignore
+//! ```
 //! use od_master::profile::Cia402;
-//! use od_master::remote::{Quantity, Scaling};
+//! use od_master::remote::{Quantity, Scaling, dim};
 //!
 //! /// Works with the AKD's client, the DRVI's, or one generated from any vendor's CiA 402 file.
-//! async fn go_to(drive: &impl Cia402, units: &dyn Scaling, to: Quantity<od_master::remote::dim::Position>)
-//!     -> Result<(), od_master::Error>
-//! {
+//! async fn go_to<D: Cia402>(
+//!     drive: &D,
+//!     units: &dyn Scaling,
+//!     to: Quantity<dim::Position>,
+//! ) -> Result<u16, od_master::Error> {
 //!     drive.target_position()?.write_in(units, to).await?;
-//!     let status = drive.statusword()?.read().await?;
-//!     Ok(())
+//!     drive.statusword()?.read().await
 //! }
 //! ```
 //!
