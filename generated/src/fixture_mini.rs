@@ -2720,6 +2720,88 @@ PDOMapping=0
             self.write_at(h.get() as usize, data)
         }
     }
+    /// The standard objects (CiA 301, CiA 402) the file names otherwise, under the
+    /// standard's names.
+    impl Dictionary {
+        /// `0x1018` sub 1 under the standard's name (the file's [`Self::identity_object_vendor_id`]).
+        #[inline]
+        pub fn vendor_id(&self) -> u32 {
+            self.identity_object_vendor_id()
+        }
+        /// Sets `0x1018` sub 1 under the standard's name (the file's [`Self::set_identity_object_vendor_id`]).
+        #[inline]
+        pub fn set_vendor_id(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_identity_object_vendor_id(v)
+        }
+        /// `0x1018` sub 2 under the standard's name (the file's [`Self::identity_object_product_code`]).
+        #[inline]
+        pub fn product_code(&self) -> u32 {
+            self.identity_object_product_code()
+        }
+        /// Sets `0x1018` sub 2 under the standard's name (the file's [`Self::set_identity_object_product_code`]).
+        #[inline]
+        pub fn set_product_code(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_identity_object_product_code(v)
+        }
+        /// `0x1018` sub 3 under the standard's name (the file's [`Self::identity_object_revision_number`]).
+        #[inline]
+        pub fn revision_number(&self) -> u32 {
+            self.identity_object_revision_number()
+        }
+        /// Sets `0x1018` sub 3 under the standard's name (the file's [`Self::set_identity_object_revision_number`]).
+        #[inline]
+        pub fn set_revision_number(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_identity_object_revision_number(v)
+        }
+        /// `0x1018` sub 4 under the standard's name (the file's [`Self::identity_object_serial_number`]).
+        #[inline]
+        pub fn serial_number(&self) -> u32 {
+            self.identity_object_serial_number()
+        }
+        /// Sets `0x1018` sub 4 under the standard's name (the file's [`Self::set_identity_object_serial_number`]).
+        #[inline]
+        pub fn set_serial_number(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_identity_object_serial_number(v)
+        }
+        /// `0x6099` sub 1 under the standard's name (the file's [`Self::homing_speeds_during_search_for_switch`]).
+        #[inline]
+        pub fn speed_during_search_for_switch(&self) -> u32 {
+            self.homing_speeds_during_search_for_switch()
+        }
+        /// Sets `0x6099` sub 1 under the standard's name (the file's [`Self::set_homing_speeds_during_search_for_switch`]).
+        #[inline]
+        pub fn set_speed_during_search_for_switch(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_homing_speeds_during_search_for_switch(v)
+        }
+        /// `0x6099` sub 2 under the standard's name (the file's [`Self::homing_speeds_during_search_for_zero`]).
+        #[inline]
+        pub fn speed_during_search_for_zero(&self) -> u32 {
+            self.homing_speeds_during_search_for_zero()
+        }
+        /// Sets `0x6099` sub 2 under the standard's name (the file's [`Self::set_homing_speeds_during_search_for_zero`]).
+        #[inline]
+        pub fn set_speed_during_search_for_zero(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_homing_speeds_during_search_for_zero(v)
+        }
+    }
     /// The SDO server's buffer: the largest entry, in bytes (at least 8).
     pub const SDO_BUFFER: usize = 32;
     /// PDOs per direction the device has (`NrOfRXPDO`/`NrOfTXPDO`, or its PDO objects).
