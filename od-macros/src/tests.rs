@@ -421,7 +421,7 @@ fn include_eds_io_and_argument_errors() {
     let no_dir = include_errors(quote! { "x.eds" }, None);
     assert!(no_dir.contains("CARGO_MANIFEST_DIR"), "{no_dir}");
     let bad = include_errors(quote! { "x.eds", colour }, Some(&manifest_dir()));
-    assert_eq!(bad, "expected `mod name`, `strict` or `client`");
+    assert_eq!(bad, "expected `mod name`, `strict`, `client` or `allow(CODE, …)`");
     let not_lit = include_errors(quote! { devices }, Some(&manifest_dir()));
     assert_eq!(not_lit, "expected string literal");
 }
