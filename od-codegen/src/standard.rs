@@ -420,9 +420,7 @@ pub fn starting_sidecar(model: &Model, source_name: &str) -> Option<Sidecar> {
     }
     if !when.is_empty() {
         for d in [Dimension::Position, Dimension::Velocity, Dimension::Acceleration] {
-            if !si_units.contains_key(&d) {
-                si_units.insert(d, user[&d].clone());
-            }
+            si_units.entry(d).or_insert_with(|| user[&d].clone());
         }
         unit_systems.push(UnitSystem {
             name: "si-units".to_owned(),
