@@ -464,40 +464,6 @@ fn model_vendor(model: &Model) -> Option<String> {
     model.device_info.vendor_name.as_deref().map(str::to_owned)
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn si_codes_decode_to_units() {
-        // mm: prefix -3 (0xFD), metre (0x01).
-        assert_eq!(decode_si(Dimension::Position, 0xFD01_0000), Some((Unit::Millimeter, Ratio::ONE)));
-        // µm: 1/1000 mm.
-        assert_eq!(decode_si(Dimension::Position, 0xFA01_0000), Some((Unit::Millimeter, Ratio { num: 1, den: 1000 })));
-        // rpm and 0.001 rpm (Nanotec's and Synapticon's 60A9h presets).
-        assert_eq!(decode_si(Dimension::Velocity, 0x00B4_4700), Some((Unit::Rpm, Ratio::ONE)));
-        assert_eq!(decode_si(Dimension::Velocity, 0xFDB4_4700), Some((Unit::Rpm, Ratio { num: 1, den: 1000 })));
-        // rpm/s.
-        assert_eq!(decode_si(Dimension::Acceleration, 0x00B4_4703), Some((Unit::RpmPerSecond, Ratio::ONE)));
-        // Increments, degrees.
-        assert_eq!(decode_si(Dimension::Position, 0x00B5_0000), Some((Unit::Increment, Ratio::ONE)));
-        assert_eq!(decode_si(Dimension::Velocity, 0x0041_0300), Some((Unit::DegreePerSecond, Ratio::ONE)));
-        // Radians: no such unit here.
-        assert_eq!(decode_si(Dimension::Position, 0x0010_0000), None);
-    }
-
-    #[test]
-    fn table_is_sorted_and_unique() {
-        for w in OBJECTS.windows(2) {
-            assert!((w[0].index, w[0].sub) < (w[1].index, w[1].sub), "{:?} before {:?}", w[0], w[1]);
-        }
-        let mut names: Vec<&str> = OBJECTS.iter().map(|o| o.name).collect();
-        names.sort_unstable();
-        names.dedup();
-        assert_eq!(names.len(), OBJECTS.len());
-    }
-}
-
 /// `impl Dictionary { … }`: each standard object of the file under the standard's name (getter
 /// and `set_` setter calling the vendor-named ones), where the file's entry has the standard's
 /// type and the standard's name is not already an accessor (of this object: the same name; of
@@ -551,5 +517,39 @@ pub(crate) fn dictionary_aliases(plan: &crate::plan::Plan<'_>) -> proc_macro2::T
         impl Dictionary {
             #(#items)*
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn si_codes_decode_to_units() {
+        // mm: prefix -3 (0xFD), metre (0x01).
+        assert_eq!(decode_si(Dimension::Position, 0xFD01_0000), Some((Unit::Millimeter, Ratio::ONE)));
+        // µm: 1/1000 mm.
+        assert_eq!(decode_si(Dimension::Position, 0xFA01_0000), Some((Unit::Millimeter, Ratio { num: 1, den: 1000 })));
+        // rpm and 0.001 rpm (Nanotec's and Synapticon's 60A9h presets).
+        assert_eq!(decode_si(Dimension::Velocity, 0x00B4_4700), Some((Unit::Rpm, Ratio::ONE)));
+        assert_eq!(decode_si(Dimension::Velocity, 0xFDB4_4700), Some((Unit::Rpm, Ratio { num: 1, den: 1000 })));
+        // rpm/s.
+        assert_eq!(decode_si(Dimension::Acceleration, 0x00B4_4703), Some((Unit::RpmPerSecond, Ratio::ONE)));
+        // Increments, degrees.
+        assert_eq!(decode_si(Dimension::Position, 0x00B5_0000), Some((Unit::Increment, Ratio::ONE)));
+        assert_eq!(decode_si(Dimension::Velocity, 0x0041_0300), Some((Unit::DegreePerSecond, Ratio::ONE)));
+        // Radians: no such unit here.
+        assert_eq!(decode_si(Dimension::Position, 0x0010_0000), None);
+    }
+
+    #[test]
+    fn table_is_sorted_and_unique() {
+        for w in OBJECTS.windows(2) {
+            assert!((w[0].index, w[0].sub) < (w[1].index, w[1].sub), "{:?} before {:?}", w[0], w[1]);
+        }
+        let mut names: Vec<&str> = OBJECTS.iter().map(|o| o.name).collect();
+        names.sort_unstable();
+        names.dedup();
+        assert_eq!(names.len(), OBJECTS.len());
     }
 }
