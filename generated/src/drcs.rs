@@ -15353,6 +15353,166 @@ PDOMapping=0
             self.write_at(h.get() as usize, data)
         }
     }
+    /// The standard objects (CiA 301, CiA 402) the file names otherwise, under the
+    /// standard's names.
+    impl Dictionary {
+        /// `0x1010` sub 1 under the standard's name (the file's [`Self::store_parameter_field_save_all`]).
+        #[inline]
+        pub fn store_all_parameters(&self) -> u32 {
+            self.store_parameter_field_save_all()
+        }
+        /// Sets `0x1010` sub 1 under the standard's name (the file's [`Self::set_store_parameter_field_save_all`]).
+        #[inline]
+        pub fn set_store_all_parameters(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_store_parameter_field_save_all(v)
+        }
+        /// `0x1011` sub 1 under the standard's name (the file's [`Self::restore_default_parameters_all`]).
+        #[inline]
+        pub fn restore_all_default_parameters(&self) -> u32 {
+            self.restore_default_parameters_all()
+        }
+        /// Sets `0x1011` sub 1 under the standard's name (the file's [`Self::set_restore_default_parameters_all`]).
+        #[inline]
+        pub fn set_restore_all_default_parameters(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_restore_default_parameters_all(v)
+        }
+        /// `0x1018` sub 1 under the standard's name (the file's [`Self::identity_object_vendor_id`]).
+        #[inline]
+        pub fn vendor_id(&self) -> u32 {
+            self.identity_object_vendor_id()
+        }
+        /// Sets `0x1018` sub 1 under the standard's name (the file's [`Self::set_identity_object_vendor_id`]).
+        #[inline]
+        pub fn set_vendor_id(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_identity_object_vendor_id(v)
+        }
+        /// `0x1018` sub 2 under the standard's name (the file's [`Self::identity_object_product_code`]).
+        #[inline]
+        pub fn product_code(&self) -> u32 {
+            self.identity_object_product_code()
+        }
+        /// Sets `0x1018` sub 2 under the standard's name (the file's [`Self::set_identity_object_product_code`]).
+        #[inline]
+        pub fn set_product_code(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_identity_object_product_code(v)
+        }
+        /// `0x1018` sub 3 under the standard's name (the file's [`Self::identity_object_revision_number`]).
+        #[inline]
+        pub fn revision_number(&self) -> u32 {
+            self.identity_object_revision_number()
+        }
+        /// Sets `0x1018` sub 3 under the standard's name (the file's [`Self::set_identity_object_revision_number`]).
+        #[inline]
+        pub fn set_revision_number(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_identity_object_revision_number(v)
+        }
+        /// `0x1018` sub 4 under the standard's name (the file's [`Self::identity_object_serial_number`]).
+        #[inline]
+        pub fn serial_number(&self) -> u32 {
+            self.identity_object_serial_number()
+        }
+        /// Sets `0x1018` sub 4 under the standard's name (the file's [`Self::set_identity_object_serial_number`]).
+        #[inline]
+        pub fn set_serial_number(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_identity_object_serial_number(v)
+        }
+        /// `0x607D` sub 1 under the standard's name (the file's [`Self::software_position_limit_min`]).
+        #[inline]
+        pub fn min_position_limit(&self) -> i32 {
+            self.software_position_limit_min()
+        }
+        /// Sets `0x607D` sub 1 under the standard's name (the file's [`Self::set_software_position_limit_min`]).
+        #[inline]
+        pub fn set_min_position_limit(
+            &mut self,
+            v: i32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_software_position_limit_min(v)
+        }
+        /// `0x607D` sub 2 under the standard's name (the file's [`Self::software_position_limit_max`]).
+        #[inline]
+        pub fn max_position_limit(&self) -> i32 {
+            self.software_position_limit_max()
+        }
+        /// Sets `0x607D` sub 2 under the standard's name (the file's [`Self::set_software_position_limit_max`]).
+        #[inline]
+        pub fn set_max_position_limit(
+            &mut self,
+            v: i32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_software_position_limit_max(v)
+        }
+        /// `0x6081` sub 0 under the standard's name (the file's [`Self::profile_velocity_in_pp_mode`]).
+        #[inline]
+        pub fn profile_velocity(&self) -> u32 {
+            self.profile_velocity_in_pp_mode()
+        }
+        /// Sets `0x6081` sub 0 under the standard's name (the file's [`Self::set_profile_velocity_in_pp_mode`]).
+        #[inline]
+        pub fn set_profile_velocity(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_profile_velocity_in_pp_mode(v)
+        }
+        /// `0x608F` sub 1 under the standard's name (the file's [`Self::position_encoder_resolution_increments`]).
+        #[inline]
+        pub fn position_encoder_resolution_encoder_increments(&self) -> u32 {
+            self.position_encoder_resolution_increments()
+        }
+        /// Sets `0x608F` sub 1 under the standard's name (the file's [`Self::set_position_encoder_resolution_increments`]).
+        #[inline]
+        pub fn set_position_encoder_resolution_encoder_increments(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_position_encoder_resolution_increments(v)
+        }
+        /// `0x6099` sub 1 under the standard's name (the file's [`Self::homing_speed_fast`]).
+        #[inline]
+        pub fn speed_during_search_for_switch(&self) -> u32 {
+            self.homing_speed_fast()
+        }
+        /// Sets `0x6099` sub 1 under the standard's name (the file's [`Self::set_homing_speed_fast`]).
+        #[inline]
+        pub fn set_speed_during_search_for_switch(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_homing_speed_fast(v)
+        }
+        /// `0x6099` sub 2 under the standard's name (the file's [`Self::homing_speed_slow`]).
+        #[inline]
+        pub fn speed_during_search_for_zero(&self) -> u32 {
+            self.homing_speed_slow()
+        }
+        /// Sets `0x6099` sub 2 under the standard's name (the file's [`Self::set_homing_speed_slow`]).
+        #[inline]
+        pub fn set_speed_during_search_for_zero(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_homing_speed_slow(v)
+        }
+    }
     /// The SDO server's buffer: the largest entry, in bytes (at least 8).
     pub const SDO_BUFFER: usize = 32;
     /// PDOs per direction the device has (`NrOfRXPDO`/`NrOfTXPDO`, or its PDO objects).

@@ -2680,6 +2680,8 @@ PDOMapping=0
         /// Reads `0x6064` Position actual value.
         ///
         /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::position_actual_value`).
         #[inline]
         pub const fn position_actual_value(&self) -> i32 {
             self.position_actual_value
@@ -2696,6 +2698,8 @@ PDOMapping=0
         /// Reads `0x606C` Velocity actual value.
         ///
         /// INTEGER32, access `ro`, PDO-mappable. Default: 0.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::velocity_actual_value`).
         #[inline]
         pub const fn velocity_actual_value(&self) -> i32 {
             self.velocity_actual_value
@@ -2712,6 +2716,8 @@ PDOMapping=0
         /// Reads `0x607A` Target position.
         ///
         /// INTEGER32, access `rww`, PDO-mappable. Default: 0. Range -1000000..=1000000.
+        ///
+        /// Dimension: Position (typed conversion: `units::Units::target_position`).
         #[inline]
         pub const fn target_position(&self) -> i32 {
             self.target_position
@@ -2750,6 +2756,8 @@ PDOMapping=0
         /// Reads `0x6099` sub 1 Homing speeds: Speed during search for switch.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 1000 (0x3E8).
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::homing_speeds_during_search_for_switch`).
         #[inline]
         pub const fn homing_speeds_during_search_for_switch(&self) -> u32 {
             self.homing_speeds_during_search_for_switch
@@ -2766,6 +2774,8 @@ PDOMapping=0
         /// Reads `0x6099` sub 2 Homing speeds: Speed during search for zero.
         ///
         /// UNSIGNED32, access `rw`, PDO-mappable. Default: 100.
+        ///
+        /// Dimension: Velocity (typed conversion: `units::Units::homing_speeds_during_search_for_zero`).
         #[inline]
         pub const fn homing_speeds_during_search_for_zero(&self) -> u32 {
             self.homing_speeds_during_search_for_zero
@@ -2892,6 +2902,88 @@ PDOMapping=0
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
             self.write_at(h.get() as usize, data)
+        }
+    }
+    /// The standard objects (CiA 301, CiA 402) the file names otherwise, under the
+    /// standard's names.
+    impl Dictionary {
+        /// `0x1018` sub 1 under the standard's name (the file's [`Self::identity_object_vendor_id`]).
+        #[inline]
+        pub fn vendor_id(&self) -> u32 {
+            self.identity_object_vendor_id()
+        }
+        /// Sets `0x1018` sub 1 under the standard's name (the file's [`Self::set_identity_object_vendor_id`]).
+        #[inline]
+        pub fn set_vendor_id(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_identity_object_vendor_id(v)
+        }
+        /// `0x1018` sub 2 under the standard's name (the file's [`Self::identity_object_product_code`]).
+        #[inline]
+        pub fn product_code(&self) -> u32 {
+            self.identity_object_product_code()
+        }
+        /// Sets `0x1018` sub 2 under the standard's name (the file's [`Self::set_identity_object_product_code`]).
+        #[inline]
+        pub fn set_product_code(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_identity_object_product_code(v)
+        }
+        /// `0x1018` sub 3 under the standard's name (the file's [`Self::identity_object_revision_number`]).
+        #[inline]
+        pub fn revision_number(&self) -> u32 {
+            self.identity_object_revision_number()
+        }
+        /// Sets `0x1018` sub 3 under the standard's name (the file's [`Self::set_identity_object_revision_number`]).
+        #[inline]
+        pub fn set_revision_number(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_identity_object_revision_number(v)
+        }
+        /// `0x1018` sub 4 under the standard's name (the file's [`Self::identity_object_serial_number`]).
+        #[inline]
+        pub fn serial_number(&self) -> u32 {
+            self.identity_object_serial_number()
+        }
+        /// Sets `0x1018` sub 4 under the standard's name (the file's [`Self::set_identity_object_serial_number`]).
+        #[inline]
+        pub fn set_serial_number(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_identity_object_serial_number(v)
+        }
+        /// `0x6099` sub 1 under the standard's name (the file's [`Self::homing_speeds_during_search_for_switch`]).
+        #[inline]
+        pub fn speed_during_search_for_switch(&self) -> u32 {
+            self.homing_speeds_during_search_for_switch()
+        }
+        /// Sets `0x6099` sub 1 under the standard's name (the file's [`Self::set_homing_speeds_during_search_for_switch`]).
+        #[inline]
+        pub fn set_speed_during_search_for_switch(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_homing_speeds_during_search_for_switch(v)
+        }
+        /// `0x6099` sub 2 under the standard's name (the file's [`Self::homing_speeds_during_search_for_zero`]).
+        #[inline]
+        pub fn speed_during_search_for_zero(&self) -> u32 {
+            self.homing_speeds_during_search_for_zero()
+        }
+        /// Sets `0x6099` sub 2 under the standard's name (the file's [`Self::set_homing_speeds_during_search_for_zero`]).
+        #[inline]
+        pub fn set_speed_during_search_for_zero(
+            &mut self,
+            v: u32,
+        ) -> Result<(), ::od_runtime::od::AbortCode> {
+            self.set_homing_speeds_during_search_for_zero(v)
         }
     }
     /// The SDO server's buffer: the largest entry, in bytes (at least 8).
@@ -3047,20 +3139,20 @@ PDOMapping=0
                 Ok(())
             }
         }
-        /// TPDO 2 (transmitted by the device), default mapping of `0x1A01`: 64 bits in 8 bytes.
+        /// Mapping table `0x1A01` (transmitted layout, 64 bits in 8 bytes): the description has no communication object `0x1801`, so this is not a PDO of its own (a vendor's fixed mapping).
         ///
         /// | bits | object | field |
         /// |------|--------|-------|
         /// | 0..32 | `0x6064` Position actual value | `position_actual_value` |
         /// | 32..64 | `0x606C` Velocity actual value | `velocity_actual_value` |
         #[derive(Clone, Copy, Debug, Default, PartialEq)]
-        pub struct Tpdo2 {
+        pub struct TxMappingTable1A01 {
             /// `0x6064` Position actual value (bits 0..32).
             pub position_actual_value: i32,
             /// `0x606C` Velocity actual value (bits 32..64).
             pub velocity_actual_value: i32,
         }
-        impl Tpdo2 {
+        impl TxMappingTable1A01 {
             /// Length of the PDO in bytes.
             pub const LEN: usize = 8;
             /// The default mapping entries (`0xIIIISSLL`).
@@ -3102,6 +3194,448 @@ PDOMapping=0
                 od.set_position_actual_value(self.position_actual_value)?;
                 od.set_velocity_actual_value(self.velocity_actual_value)?;
                 Ok(())
+            }
+        }
+    }
+    /// Physical units of the device's values, from its sidecar (see the od-codegen `units`
+    /// module docs for the arithmetic).
+    pub mod units {
+        #[doc(inline)]
+        pub use ::od_runtime::__private_v2::Ratio;
+        /// A physical unit.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum Unit {
+            /// `user`
+            UserUnit,
+            /// `user/s`
+            UserUnitPerSecond,
+            /// `user/s^2`
+            UserUnitPerSecond2,
+            /// `permille_rated_torque`
+            PermilleRatedTorque,
+            /// `permille_rated_current`
+            PermilleRatedCurrent,
+            /// `permille_rated_torque/s`
+            PermilleRatedTorquePerSecond,
+            /// `ms`
+            Millisecond,
+        }
+        impl Unit {
+            /// The unit's symbol.
+            pub const fn symbol(self) -> &'static str {
+                match self {
+                    Unit::UserUnit => "user",
+                    Unit::UserUnitPerSecond => "user/s",
+                    Unit::UserUnitPerSecond2 => "user/s^2",
+                    Unit::PermilleRatedTorque => "permille_rated_torque",
+                    Unit::PermilleRatedCurrent => "permille_rated_current",
+                    Unit::PermilleRatedTorquePerSecond => "permille_rated_torque/s",
+                    Unit::Millisecond => "ms",
+                }
+            }
+        }
+        /// A physical dimension.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum Dimension {
+            /// Position.
+            Position,
+            /// Velocity.
+            Velocity,
+            /// Acceleration.
+            Acceleration,
+            /// Torque.
+            Torque,
+            /// Current.
+            Current,
+            /// TorqueSlope.
+            TorqueSlope,
+            /// Time.
+            Time,
+        }
+        impl Dimension {
+            const fn slot(self) -> usize {
+                match self {
+                    Dimension::Position => 0,
+                    Dimension::Velocity => 1,
+                    Dimension::Acceleration => 2,
+                    Dimension::Torque => 3,
+                    Dimension::Current => 4,
+                    Dimension::TorqueSlope => 5,
+                    Dimension::Time => 6,
+                }
+            }
+        }
+        /// A unit configuration of the device.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum System {
+            /// `position-units`
+            ///
+            /// the drive's own position units (CiA 402 user units, no SI unit object this crate reads): positions in \`user\`, velocities in \`user/s\`, accelerations in \`user/s^2\`
+            PositionUnits,
+        }
+        impl System {
+            /// The sidecar's name of the system.
+            pub const fn name(self) -> &'static str {
+                match self {
+                    System::PositionUnits => "position-units",
+                }
+            }
+            /// The system the dictionary's current values select (the first whose conditions
+            /// hold, else the default one; external systems only by explicit choice).
+            pub fn active(od: &super::Dictionary) -> System {
+                let _ = od;
+                System::PositionUnits
+            }
+        }
+        /// Why a conversion failed.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        pub enum UnitError {
+            /// A scaling object holds 0 where it divides.
+            ZeroFactor {
+                /// The scaling object.
+                index: u16,
+            },
+            /// An intermediate or final value does not fit.
+            Overflow,
+            /// The dimension has no unit in the active system.
+            NoUnit,
+            /// The quantity's unit is not the system's unit for the dimension.
+            WrongUnit {
+                /// The system's unit.
+                expected: Unit,
+                /// The quantity's unit.
+                got: Unit,
+            },
+            /// The raw value does not fit the entry's type.
+            OutOfRange,
+            /// The dictionary refused the value (limits).
+            Rejected(::od_runtime::od::AbortCode),
+        }
+        /// An exact physical value.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        pub struct Quantity {
+            /// The value.
+            pub value: Ratio,
+            /// Its unit.
+            pub unit: Unit,
+        }
+        impl Quantity {
+            /// `value` in `unit`.
+            pub const fn new(value: Ratio, unit: Unit) -> Self {
+                Quantity { value, unit }
+            }
+            /// An integer value in `unit`.
+            pub const fn int(value: i64, unit: Unit) -> Self {
+                Quantity {
+                    value: Ratio::int(value),
+                    unit,
+                }
+            }
+            /// The nearest `f64` (for display; conversions stay exact).
+            pub fn to_f64(self) -> f64 {
+                self.value.to_f64()
+            }
+        }
+        /// The conversions of one configured device.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        pub struct Units {
+            system: System,
+            /// Physical value per raw unit (prepared for fast exact conversions both ways),
+            /// and the physical unit, per dimension.
+            factor: [Option<(::od_runtime::__private_v2::Scale, Unit)>; 7],
+            /// Internal value (increments or motor revolutions) per raw unit, per dimension.
+            internal: [Option<Ratio>; 7],
+        }
+        impl Units {
+            /// The conversions for the system the dictionary selects.
+            pub fn from_dictionary(od: &super::Dictionary) -> Result<Units, UnitError> {
+                Self::with_system(System::active(od), od)
+            }
+            /// The conversions for `system`, with the scaling objects' current values.
+            pub fn with_system(
+                system: System,
+                od: &super::Dictionary,
+            ) -> Result<Units, UnitError> {
+                let _ = od;
+                let mut factor = [None; 7];
+                let mut internal = [None; 7];
+                match system {
+                    System::PositionUnits => {
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            factor[0] = Some((
+                                ::od_runtime::__private_v2::Scale::new(f),
+                                Unit::UserUnit,
+                            ));
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            factor[1] = Some((
+                                ::od_runtime::__private_v2::Scale::new(f),
+                                Unit::UserUnitPerSecond,
+                            ));
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            factor[2] = Some((
+                                ::od_runtime::__private_v2::Scale::new(f),
+                                Unit::UserUnitPerSecond2,
+                            ));
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            factor[3] = Some((
+                                ::od_runtime::__private_v2::Scale::new(f),
+                                Unit::PermilleRatedTorque,
+                            ));
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            factor[4] = Some((
+                                ::od_runtime::__private_v2::Scale::new(f),
+                                Unit::PermilleRatedCurrent,
+                            ));
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            factor[5] = Some((
+                                ::od_runtime::__private_v2::Scale::new(f),
+                                Unit::PermilleRatedTorquePerSecond,
+                            ));
+                        }
+                        {
+                            let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
+                            factor[6] = Some((
+                                ::od_runtime::__private_v2::Scale::new(f),
+                                Unit::Millisecond,
+                            ));
+                        }
+                    }
+                }
+                let _ = &mut internal;
+                Ok(Units { system, factor, internal })
+            }
+            /// The unit system.
+            pub const fn system(&self) -> System {
+                self.system
+            }
+            /// The unit of a dimension in this configuration.
+            pub fn unit(&self, d: Dimension) -> Option<Unit> {
+                self.factor.get(d.slot()).copied().flatten().map(|(_, u)| u)
+            }
+            /// Physical value per raw unit (exact, reduced).
+            pub fn factor(&self, d: Dimension) -> Option<Ratio> {
+                self.factor.get(d.slot()).copied().flatten().map(|(f, _)| f.factor())
+            }
+            /// Internal value (encoder increments, or motor revolutions) per raw unit, where
+            /// the system's scaling objects define one.
+            pub fn internal_factor(&self, d: Dimension) -> Option<Ratio> {
+                self.internal.get(d.slot()).copied().flatten()
+            }
+        }
+        impl Units {
+            /// `raw × factor`, exact.
+            #[inline]
+            pub fn to_physical(
+                &self,
+                d: Dimension,
+                raw: i64,
+            ) -> Result<Quantity, UnitError> {
+                let Some(Some((f, unit))) = self.factor.get(d.slot()) else {
+                    return Err(UnitError::NoUnit);
+                };
+                Ok(Quantity {
+                    value: f.to_physical(raw).ok_or(UnitError::Overflow)?,
+                    unit: *unit,
+                })
+            }
+            /// The prepared factor for converting `q` in dimension `d`.
+            #[inline]
+            fn scale_for(
+                &self,
+                d: Dimension,
+                q: &Quantity,
+            ) -> Result<&::od_runtime::__private_v2::Scale, UnitError> {
+                match self.factor.get(d.slot()) {
+                    Some(Some((f, unit))) if *unit == q.unit => Ok(f),
+                    Some(Some((_, unit))) => {
+                        Err(UnitError::WrongUnit {
+                            expected: *unit,
+                            got: q.unit,
+                        })
+                    }
+                    _ => Err(UnitError::NoUnit),
+                }
+            }
+            /// `q / factor`, exact (may be fractional).
+            pub fn to_raw_exact(
+                &self,
+                d: Dimension,
+                q: Quantity,
+            ) -> Result<Ratio, UnitError> {
+                self.scale_for(d, &q)?.to_raw_exact(q.value).ok_or(UnitError::Overflow)
+            }
+            /// `q / factor` rounded to the nearest integer, halves away from zero.
+            ///
+            /// Integer and decimal quantities (denominators up to 10^6) convert without a
+            /// division instruction; always inlined, so a loop converting many values keeps
+            /// the prepared factor in registers (the rare general paths stay out of line).
+            #[inline(always)]
+            pub fn to_raw(&self, d: Dimension, q: Quantity) -> Result<i64, UnitError> {
+                self.scale_for(d, &q)?.to_raw_i64(q.value).ok_or(UnitError::Overflow)
+            }
+            /// `raw × internal factor`, exact: encoder increments (or motor revolutions).
+            pub fn to_internal(
+                &self,
+                d: Dimension,
+                raw: i64,
+            ) -> Result<Ratio, UnitError> {
+                let g = self
+                    .internal
+                    .get(d.slot())
+                    .copied()
+                    .flatten()
+                    .ok_or(UnitError::NoUnit)?;
+                g.checked_mul_int(raw).ok_or(UnitError::Overflow)
+            }
+            /// `internal / internal factor`, exact (may be fractional): the raw value of an
+            /// internal one (encoder increments, or motor revolutions).
+            pub fn internal_to_raw_exact(
+                &self,
+                d: Dimension,
+                internal: Ratio,
+            ) -> Result<Ratio, UnitError> {
+                let g = self
+                    .internal
+                    .get(d.slot())
+                    .copied()
+                    .flatten()
+                    .ok_or(UnitError::NoUnit)?;
+                internal.checked_div(g).ok_or(UnitError::Overflow)
+            }
+            /// `internal / internal factor` rounded to the nearest integer, halves away from
+            /// zero: the raw value the device shows for an internal one.
+            pub fn internal_to_raw(
+                &self,
+                d: Dimension,
+                internal: Ratio,
+            ) -> Result<i64, UnitError> {
+                let raw = self.internal_to_raw_exact(d, internal)?;
+                i64::try_from(raw.round()).map_err(|_| UnitError::Overflow)
+            }
+            /// `internal / internal factor × factor`, exact: the physical value of an internal
+            /// one (how far the load moves for so many motor revolutions).
+            pub fn internal_to_physical(
+                &self,
+                d: Dimension,
+                internal: Ratio,
+            ) -> Result<Quantity, UnitError> {
+                let raw = self.internal_to_raw_exact(d, internal)?;
+                let Some(Some((f, unit))) = self.factor.get(d.slot()) else {
+                    return Err(UnitError::NoUnit);
+                };
+                Ok(Quantity {
+                    value: raw
+                        .checked_mul(f.factor())
+                        .ok_or(UnitError::Overflow)?
+                        .reduced(),
+                    unit: *unit,
+                })
+            }
+        }
+        impl Units {
+            /// `0x6064` Position actual value as a Position quantity.
+            pub fn position_actual_value(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Position, od.position_actual_value() as i64)
+            }
+            /// Sets `0x6064` Position actual value from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_position_actual_value(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_position_actual_value(v).map_err(UnitError::Rejected)
+            }
+            /// `0x606C` Velocity actual value as a Velocity quantity.
+            pub fn velocity_actual_value(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Velocity, od.velocity_actual_value() as i64)
+            }
+            /// Sets `0x606C` Velocity actual value from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_velocity_actual_value(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_velocity_actual_value(v).map_err(UnitError::Rejected)
+            }
+            /// `0x607A` Target position as a Position quantity.
+            pub fn target_position(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(Dimension::Position, od.target_position() as i64)
+            }
+            /// Sets `0x607A` Target position from a Position quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_target_position(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Position, q)?;
+                let v = i32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_target_position(v).map_err(UnitError::Rejected)
+            }
+            /// `0x6099` sub 1 Homing speeds: Speed during search for switch as a Velocity quantity.
+            pub fn homing_speeds_during_search_for_switch(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Velocity,
+                    od.homing_speeds_during_search_for_switch() as i64,
+                )
+            }
+            /// Sets `0x6099` sub 1 Homing speeds: Speed during search for switch from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_homing_speeds_during_search_for_switch(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_homing_speeds_during_search_for_switch(v)
+                    .map_err(UnitError::Rejected)
+            }
+            /// `0x6099` sub 2 Homing speeds: Speed during search for zero as a Velocity quantity.
+            pub fn homing_speeds_during_search_for_zero(
+                &self,
+                od: &super::Dictionary,
+            ) -> Result<Quantity, UnitError> {
+                self.to_physical(
+                    Dimension::Velocity,
+                    od.homing_speeds_during_search_for_zero() as i64,
+                )
+            }
+            /// Sets `0x6099` sub 2 Homing speeds: Speed during search for zero from a Velocity quantity (rounded to the nearest raw value, halves away from zero; limits checked by the dictionary).
+            pub fn set_homing_speeds_during_search_for_zero(
+                &self,
+                od: &mut super::Dictionary,
+                q: Quantity,
+            ) -> Result<(), UnitError> {
+                let raw = self.to_raw(Dimension::Velocity, q)?;
+                let v = u32::try_from(raw).map_err(|_| UnitError::OutOfRange)?;
+                od.set_homing_speeds_during_search_for_zero(v)
+                    .map_err(UnitError::Rejected)
             }
         }
     }

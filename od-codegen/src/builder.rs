@@ -51,9 +51,13 @@ struct DeviceSpec {
 ///   once a build script prints one `rerun-if-changed`, Cargo reruns it only when one of the
 ///   listed files changes, no longer on every change in the package. A build script that also
 ///   depends on other files must list them itself;
-/// * prints each warning once, as one `cargo:warning=` line with its `file:line:col`, and
-///   fails with [`Error::Device`] (naming the device, every error rendered rustc-style) when a
-///   description has errors; the other devices' files are still written;
+/// * reports what `odgen check` reports for the file (the reader's warnings, the same codes and
+///   text) and the generator's own warnings ([`crate::diagnose`]), each as one short
+///   `cargo:warning=` line `file:line:col: warning[CODE]: message`, **once per change** of
+///   the description, its sidecar or the builder's settings, not on every build (see
+///   [`Builder::compile`]); [`Builder::allow`] silences a code; fails with [`Error::Device`]
+///   (naming the device, every error rendered rustc-style) when a description has errors; the
+///   other devices' files are still written;
 /// * generates leniently unless [`Builder::strict`]: a deviation of a vendor's file (see
 ///   [`crate::diag`]) is a warning and the device still builds;
 /// * emits `pub const EDS` only with [`Builder::embed_eds`]; the header names the generator
@@ -72,6 +76,7 @@ pub struct Builder {
     embed_eds: bool,
     names: Option<crate::Names>,
     client: bool,
+    allowed: Vec<String>,
 }
 
 /// What went wrong in [`Builder::compile`].
@@ -152,8 +157,9 @@ pub struct Output {
     pub inputs: Vec<PathBuf>,
     /// The description's text, as the diagnostics' locations refer to it.
     pub source: eds::source::SourceFile,
-    /// Every diagnostic worth showing: the reader's errors, the generator's warnings and
-    /// errors, in file order. [`Builder::generate`] fails when one is an error.
+    /// Every diagnostic worth showing: the reader's and the generator's warnings and errors
+    /// (what `odgen check` shows for the file), without the codes [`Builder::allow`] silences,
+    /// in file order. [`Builder::generate`] fails when one is an error.
     pub diagnostics: Vec<eds::Diagnostic>,
 }
 
@@ -169,11 +175,17 @@ impl Output {
         eds::diag::render_all(&shown, &self.source)
     }
 
-    /// One line per diagnostic: `file:line:col: warning[G0104]: in …: message (hint: …)`, the
-    /// form of a `cargo:warning=` line.
+    /// One line per diagnostic: `file:line:col: warning[G0104]: in …: message (hint: …)`.
     pub fn headlines(&self, min: Severity) -> Vec<String> {
         let shown: Vec<eds::Diagnostic> = self.diagnostics.iter().filter(|d| d.severity >= min).cloned().collect();
         crate::diag::render_plain(&shown).lines().map(str::to_owned).collect()
+    }
+
+    /// One short line per diagnostic of at least `min`: `file:line:col: warning[G0104]:
+    /// message` (no context, no hint: `odgen check` gives those), the form of a
+    /// `cargo:warning=` line.
+    pub fn short_lines(&self, min: Severity) -> Vec<String> {
+        self.diagnostics.iter().filter(|d| d.severity >= min).map(crate::diag::short_line).collect()
     }
 }
 
@@ -196,6 +208,13 @@ impl Builder {
     }
 
     /// Uses `path` as the sidecar of the device added last.
+    ///
+    /// A device's sidecar serves any file of the same drive: a vendor's own EDS of a drive the
+    /// project describes gets the project's units with
+    /// `.device("akd", "vendor/AKD.eds").sidecar("devices/kollmorgen-akd.toml")` (the sidecar
+    /// refers to objects by index, so the vendor's names do not matter; an object the file
+    /// lacks is a G0201 error naming it). For a drive no sidecar describes, `odgen sidecar
+    /// FILE -o FILE.toml` writes a starting one from the file's CiA 402 objects.
     pub fn sidecar(mut self, path: impl AsRef<Path>) -> Self {
         if let Some(d) = self.devices.last_mut() {
             d.sidecar = SidecarSource::Path(path.as_ref().to_path_buf());
@@ -203,7 +222,9 @@ impl Builder {
         self
     }
 
-    /// Generates the device added last without a sidecar (no `units` module).
+    /// Generates the device added last without a sidecar file: a file with CiA 402 objects
+    /// still gets its `units` module and dimensions, from its own unit objects
+    /// (`od_codegen::standard::starting_sidecar`); other files get none.
     pub fn no_sidecar(mut self) -> Self {
         if let Some(d) = self.devices.last_mut() {
             d.sidecar = SidecarSource::None;
@@ -259,6 +280,14 @@ impl Builder {
         self
     }
 
+    /// Silences diagnostic code `code` (`"G0104"`, `"E0301"`, …) for every device, as rustc's
+    /// and clippy's `allow` do: its warnings and notes are not printed (errors still fail the
+    /// build). `odgen check --allow CODE` and `include_eds!(…, allow(CODE))` do the same.
+    pub fn allow(mut self, code: impl Into<String>) -> Self {
+        self.allowed.push(code.into());
+        self
+    }
+
     /// Whether the generated code keeps the entries' names (default [`crate::Names::Always`]).
     pub fn names(mut self, names: crate::Names) -> Self {
         self.names = Some(names);
@@ -303,8 +332,9 @@ impl Builder {
         let mut inputs = vec![path.clone()];
         let parsed = eds::parse(&shown, &bytes, &eds::Options::lenient());
         let source = parsed.document.source.clone();
+        // What `odgen check` shows for the file (its default level: warnings and errors).
         let mut diagnostics: Vec<eds::Diagnostic> =
-            parsed.diagnostics.iter().filter(|d| d.severity == Severity::Error).cloned().collect();
+            parsed.diagnostics.iter().filter(|d| d.severity >= Severity::Warning).cloned().collect();
 
         let mut options = Options::new(d.module.clone(), shown.clone());
         options.strict = self.strict;
@@ -343,6 +373,9 @@ impl Builder {
         let generated = expand_text(&parsed.model, &options);
         let text = generated.render(&shown).map_err(|e| Error::Render(e.to_string()))?;
         diagnostics.extend(generated.diagnostics.into_iter().filter(|d| d.severity >= Severity::Warning));
+        diagnostics.retain(|d| crate::shown(d, &self.allowed));
+        // In file order, reader's and generator's together (unlocated ones last).
+        diagnostics.sort_by_key(|d| d.at.map_or((u32::MAX as usize, 0), |a| (a.line as usize, a.col as usize)));
         Ok(Output {
             module: d.module.clone(),
             file_name: format!("{}.rs", d.module),
@@ -394,6 +427,14 @@ impl Builder {
 
     /// Generates every device and writes the files that changed (see the type's docs). A device
     /// with errors fails the build, naming it, but every other device's file is still written.
+    ///
+    /// Warnings are printed once per change. Cargo shows a build script's `cargo:warning`
+    /// lines again on every build that does not rerun it (it replays the script's stored
+    /// output), so the builder keeps the lines it printed, with a digest of the inputs, in
+    /// `<out_dir>/<module>.diagnostics` and lists that file with `rerun-if-changed`: a build
+    /// after a change prints the lines and writes the file, which makes Cargo run the script
+    /// once more; that run finds the same lines and inputs, prints nothing and leaves the file
+    /// alone, and from then on Cargo has nothing to replay and does not rerun the script.
     pub fn compile(&self) -> Result<(), Error> {
         let metadata = self.metadata();
         if metadata {
@@ -426,13 +467,36 @@ impl Builder {
                     continue;
                 }
             };
-            // Each warning once, as one line with its location; errors go into the returned
-            // error, rendered in full, which the build script prints.
-            if metadata {
-                let warnings: Vec<eds::Diagnostic> =
-                    o.diagnostics.iter().filter(|d| d.severity == Severity::Warning).cloned().collect();
-                for w in crate::diag::render_plain(&warnings).lines() {
-                    println!("cargo:warning={w}");
+            // Each warning once per change, as one short line with its location (see above);
+            // errors go into the returned error, rendered in full, which the build script
+            // prints.
+            if metadata && !o.has_errors() {
+                let stamp = out_dir.join(format!("{}.diagnostics", o.module));
+                println!("cargo:rerun-if-changed={}", stamp.display());
+                let lines = o.short_lines(Severity::Warning);
+                let mut text = format!("# generated {:016x}\n", digest(&o.text));
+                for l in &lines {
+                    text.push_str(l);
+                    text.push('\n');
+                }
+                let old = std::fs::read_to_string(&stamp).ok();
+                if old.as_deref() != Some(text.as_str()) {
+                    for l in &lines {
+                        println!("cargo:warning={l}");
+                    }
+                    if !lines.is_empty() {
+                        println!(
+                            "cargo:warning={}: {} warning{} from od-codegen, shown once per change of the file; \
+                             `odgen check {}` explains each, `Builder::allow(\"CODE\")` silences a code",
+                            self.shown(&d.path),
+                            lines.len(),
+                            if lines.len() == 1 { "" } else { "s" },
+                            self.shown(&d.path)
+                        );
+                    }
+                    if let Err(e) = std::fs::write(&stamp, &text) {
+                        failed.push(Error::Io { path: stamp, source: e });
+                    }
                 }
             }
             if o.has_errors() {
@@ -453,6 +517,15 @@ impl Builder {
             _ => Err(Error::Devices(failed)),
         }
     }
+}
+
+/// A digest of the generated text (it changes when the description, its sidecar or the
+/// settings change what is generated).
+fn digest(text: &str) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    text.hash(&mut h);
+    h.finish()
 }
 
 /// `path` relative to `base` (both absolute), with `..` where needed; `None` when they share

@@ -142,7 +142,13 @@ fn scaling_entries(sc: &Sidecar) -> BTreeSet<(u16, u8)> {
 }
 
 /// `pub mod remote { … }`.
-pub(crate) fn module(model: &Model, plan: &Plan<'_>, sidecar: Option<&Sidecar>, product: &str) -> TokenStream {
+pub(crate) fn module(
+    model: &Model,
+    plan: &Plan<'_>,
+    sidecar: Option<&Sidecar>,
+    has_units: bool,
+    product: &str,
+) -> TokenStream {
     let r = r();
     let mut taken: BTreeSet<String> = plan.entries.iter().map(|e| e.field.clone()).collect();
     taken.insert("new".to_owned());
@@ -152,6 +158,9 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sidecar: Option<&Sidecar>, 
     for e in &plan.entries {
         let Some(w) = wire(e.dt) else { continue };
         let (acc, acc_name) = access(e.entry.access);
+        // The dimension of the generator's sidecar: the given one with CiA 402's positions,
+        // velocities and accelerations added, or the one derived from the file's CiA 402
+        // objects (`standard::effective_sidecar`).
         let dim = sidecar
             .filter(|_| e.ty.is_int() && e.ty != Ty::Bool)
             .and_then(|sc| sc.dimension_of(e.index, e.sub))
@@ -179,8 +188,9 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sidecar: Option<&Sidecar>, 
         });
     }
 
+    let profiles = profile_items(model, plan);
     let pdos = pdo_items(model, plan, &mut taken);
-    let units = sidecar.map(|sc| units_items(plan, sc, &mut taken)).unwrap_or_default();
+    let units = sidecar.filter(|_| has_units).map(|sc| units_items(plan, sc, &mut taken)).unwrap_or_default();
     let product = lit::doc_escape(product);
     let mod_doc = lit::doc(&[
         format!("The {product} seen from a CANopen master (`od_master`): one method per entry, named as"),
@@ -209,9 +219,73 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sidecar: Option<&Sidecar>, 
                 }
                 #(#methods)*
             }
+            #profiles
             #pdos
             #units
         }
+    }
+}
+
+/// `impl od_master::profile::Cia301 for Remote` (and `Cia402` when the device has CiA 402
+/// objects): the standard objects under the standard's names, each from the file's entry when
+/// it serves the standard's type and access, a "data type does not match" refusal when it
+/// does not; the trait's default (the object does not exist) otherwise.
+fn profile_items(model: &Model, plan: &Plan<'_>) -> TokenStream {
+    use crate::standard::{self, Profile, StdAccess};
+    let r = r();
+    let by_key: std::collections::BTreeMap<(u16, u8), &PEntry<'_>> =
+        plan.entries.iter().map(|e| ((e.index, e.sub), e)).collect();
+    let mut m301 = Vec::new();
+    let mut m402 = Vec::new();
+    for o in standard::OBJECTS {
+        let Some(e) = by_key.get(&(o.index, o.sub)) else { continue };
+        let Some(w) = wire(o.data_type) else { continue };
+        let name = format_ident!("{}", o.name);
+        let acc = match o.access {
+            StdAccess::Ro => quote!(Ro),
+            StdAccess::Rw => quote!(Rw),
+        };
+        let ty = match o.dimension {
+            Some(d) => {
+                let d = format_ident!("{d:?}");
+                quote!(#r::#acc<'_, #w, #r::dim::#d>)
+            }
+            None => quote!(#r::#acc<'_, #w>),
+        };
+        let (index, sub) = (lit::hex(u64::from(o.index), 4), proc_macro2::Literal::u8_unsuffixed(o.sub));
+        let body = if standard::serves(o, e.dt, e.entry.access) {
+            let (lim, _) = limits(e);
+            quote!(Ok(#r::Object::new(&self.node, #index, #sub)#lim))
+        } else {
+            quote!(Err(::od_master::profile::mistyped(&self.node, #index, #sub)))
+        };
+        let m = quote! {
+            fn #name(&self) -> Result<#ty, ::od_master::Error> {
+                #body
+            }
+        };
+        match o.profile {
+            Profile::Cia301 => m301.push(m),
+            Profile::Cia402 => m402.push(m),
+        }
+    }
+    let cia402 = if standard::has_cia402(model) {
+        quote! {
+            impl ::od_master::profile::Cia402 for Remote {
+                #(#m402)*
+            }
+        }
+    } else {
+        TokenStream::new()
+    };
+    quote! {
+        impl ::od_master::profile::Cia301 for Remote {
+            fn node(&self) -> &::od_master::Node {
+                &self.node
+            }
+            #(#m301)*
+        }
+        #cia402
     }
 }
 

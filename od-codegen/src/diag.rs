@@ -31,6 +31,7 @@
 //! | G0106 | deviation | a mapping object is malformed (count or entry missing, not a number) |
 //! | G0107 | warning  | a mapping has a variable-length entry; no typed layout is generated |
 //! | G0108 | deviation | a counted mapping entry is `0x00000000` (a placeholder: nothing mapped) |
+//! | G0109 | note     | a mapping object has no communication object: a mapping table, not a PDO; no client method |
 //! | G0201 | error    | the sidecar's unit description is inconsistent with the device description |
 //! | G0202 | error    | the sidecar cannot be read (TOML or schema error, with its own location) |
 //!
@@ -73,6 +74,8 @@ pub const PDO_MALFORMED: Code = Code("G0106");
 pub const PDO_VARIABLE: Code = Code("G0107");
 /// Placeholder mapping entry `0x00000000` inside the counted range.
 pub const PDO_PLACEHOLDER: Code = Code("G0108");
+/// Mapping object without its communication object (a mapping table, not a PDO).
+pub const PDO_NO_COMM: Code = Code("G0109");
 /// Unit description inconsistent.
 pub const UNITS: Code = Code("G0201");
 /// Sidecar unreadable.
@@ -176,6 +179,47 @@ pub fn render_plain(diags: &[Diagnostic]) -> String {
     }
     s
 }
+
+/// One diagnostic as one short line: `file:line:col: warning[G0104]: message` (no context,
+/// no hint), as a build script prints it.
+pub fn short_line(d: &Diagnostic) -> String {
+    match d.at {
+        Some(lc) => format!("{}:{}:{}: {}[{}]: {}", d.file, lc.line, lc.col, d.severity, d.code.0, d.message),
+        None => format!("{}: {}[{}]: {}", d.file, d.severity, d.code.0, d.message),
+    }
+}
+
+/// Every code the generator reports, with its lenient severity, whether it is a deviation and
+/// one line saying what it is about (the table of the module docs), for tools that list rules
+/// (`odgen check --format sarif`).
+pub const ALL: &[eds::codes::CodeInfo] = {
+    use eds::codes::CodeInfo as C;
+    const fn c(code: Code, lenient: Severity, deviation: bool, summary: &'static str) -> C {
+        C { code, lenient, deviation, summary }
+    }
+    use Severity::{Error as E, Note as N, Warning as W};
+    &[
+        c(NAME_COLLISION, W, false, "two entries derive the same Rust name; the later one gets a suffix"),
+        c(UNSUPPORTED_TYPE, W, false, "an entry has a data type the generator cannot store; it is left out"),
+        c(BAD_DEFAULT, W, true, "a default value does not fit the entry's type; the entry starts at zero"),
+        c(LIMIT_IGNORED, W, false, "a limit the runtime cannot enforce ($NODEID limit) is ignored"),
+        c(NO_VALUE_OBJECT, N, false, "an object of a kind that holds no value is left out"),
+        c(BAD_MODULE_NAME, E, false, "the module name is not a Rust identifier"),
+        c(TOO_MANY_OBJECTS, E, false, "more than 65535 objects: the lookup table cannot number them"),
+        c(LIMIT_CLIPPED, W, true, "a limit lies outside the entry's type; it is clipped to the type"),
+        c(PDO_TOO_LONG, W, true, "a default PDO mapping carries more than 64 bits"),
+        c(PDO_NOT_MAPPABLE, W, true, "a mapped entry does not have PDOMapping=1"),
+        c(PDO_ACCESS, W, true, "a mapped entry's access type does not allow this PDO direction"),
+        c(PDO_NO_OBJECT, W, true, "a mapped object does not exist"),
+        c(PDO_LENGTH, W, true, "a mapping length does not match the mapped entry"),
+        c(PDO_MALFORMED, W, true, "a mapping object is malformed"),
+        c(PDO_VARIABLE, W, false, "a mapping has a variable-length entry; no typed layout is generated"),
+        c(PDO_PLACEHOLDER, W, true, "a counted mapping entry is 0x00000000 (a placeholder)"),
+        c(PDO_NO_COMM, N, false, "a mapping object has no communication object: a mapping table, not a PDO"),
+        c(UNITS, E, false, "the sidecar's unit description is inconsistent with the device description"),
+        c(SIDECAR, E, false, "the sidecar cannot be read"),
+    ]
+};
 
 /// The codes of deviations: warnings in lenient mode, errors in strict mode (see the module
 /// docs).

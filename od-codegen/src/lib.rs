@@ -105,6 +105,7 @@ mod lookup;
 pub mod network;
 pub mod pdo;
 mod plan;
+pub mod standard;
 mod support;
 mod text;
 pub mod units;
@@ -138,7 +139,10 @@ pub struct Options {
     /// The device description's text, emitted as `pub const EDS: &str` (line ends normalised
     /// to `\n`); no `EDS` constant if `None`.
     pub eds_text: Option<String>,
-    /// The device sidecar, for unit conversions (no `units` module without it).
+    /// The device sidecar, for unit conversions. Without one, a description with CiA 402
+    /// objects gets the units derived from them ([`standard::starting_sidecar`]); with one,
+    /// CiA 402's positions, velocities and accelerations it does not name are added
+    /// ([`standard::effective_sidecar`]).
     pub sidecar: Option<crate::sidecar::Sidecar>,
     /// Smallest capacity of a string or byte buffer, in bytes.
     pub min_capacity: usize,
@@ -258,6 +262,7 @@ pub fn expand_text(model: &Model, options: &Options) -> GeneratedText {
 }
 
 fn expand_with(model: &Model, options: &Options, parts: &mut text::Parts) -> (TokenStream, Vec<Diagnostic>) {
+    let options = &with_standard_units(model, options);
     let mut sink = diag::Sink::new(&options.source_name, options.strict);
     let module = match syn::parse_str::<syn::Ident>(&options.module) {
         Ok(_) => format_ident!("{}", options.module),
@@ -285,6 +290,7 @@ fn expand_with(model: &Model, options: &Options, parts: &mut text::Parts) -> (To
     let tables = emit::tables(&plan, &options.names, &mut sink, parts);
     let dictionary = emit::dictionary(model, &plan, &options.names, options.sidecar.as_ref(), parts);
     let device = emit::device_type(model, &plan);
+    let aliases = standard::dictionary_aliases(&plan);
     let pdo = pdo::module(model, &plan, &mut sink);
     let units = match &options.sidecar {
         Some(sc) => units::module(model, &plan, sc, &mut sink),
@@ -292,7 +298,7 @@ fn expand_with(model: &Model, options: &Options, parts: &mut text::Parts) -> (To
     };
     let product = model.device_info.product_name.as_deref().unwrap_or(&options.source_name);
     let client = if options.client {
-        client::module(model, &plan, options.sidecar.as_ref().filter(|_| !units.is_empty()), product)
+        client::module(model, &plan, options.sidecar.as_ref(), !units.is_empty(), product)
     } else {
         TokenStream::new()
     };
@@ -310,6 +316,7 @@ fn expand_with(model: &Model, options: &Options, parts: &mut text::Parts) -> (To
             #index
             #tables
             #dictionary
+            #aliases
             #device
             #pdo
             #units
@@ -319,6 +326,57 @@ fn expand_with(model: &Model, options: &Options, parts: &mut text::Parts) -> (To
     let mut diagnostics = sink.out;
     diagnostics.sort_by_key(|d| d.at.map(|a| (a.line, a.col)));
     (tokens, diagnostics)
+}
+
+/// The generator's diagnostics for `model` with `options`, without generating anything: what
+/// [`expand`] and [`expand_text`] report, in the same order (`odgen check` adds them to the
+/// reader's, so a build and `odgen check` say the same things about a file).
+pub fn diagnose(model: &Model, options: &Options) -> Vec<Diagnostic> {
+    let options = &with_standard_units(model, options);
+    let mut sink = diag::Sink::new(&options.source_name, options.strict);
+    if syn::parse_str::<syn::Ident>(&options.module).is_err() {
+        sink.general(
+            Severity::Error,
+            diag::BAD_MODULE_NAME,
+            format!("module name `{}` is not a Rust identifier; using `device`", options.module),
+        );
+    }
+    let plan = plan::build(model, options, &mut sink);
+    let keys: Vec<(u16, u8)> = plan.entries.iter().map(|e| (e.index, e.sub)).collect();
+    if lookup::tokens(&keys).is_none() {
+        // As `emit::tables` says it.
+        sink.general(
+            Severity::Error,
+            diag::TOO_MANY_OBJECTS,
+            format!(
+                "the device has more than {} objects, or objects in more than {} ranges of 256 \
+                 indices; the generated lookup table cannot number them",
+                lookup::MAX_OBJECTS,
+                lookup::MAX_PAGES
+            ),
+        );
+    }
+    pdo::check_layouts(model, &plan, &mut sink);
+    if let Some(sc) = &options.sidecar {
+        let _ = units::module(model, &plan, sc, &mut sink);
+    }
+    let mut diagnostics = sink.out;
+    diagnostics.sort_by_key(|d| d.at.map(|a| (a.line, a.col)));
+    diagnostics
+}
+
+/// `options` with the sidecar the generator uses ([`standard::effective_sidecar`]): the given
+/// one with CiA 402's dimensions added, or one derived from the file's CiA 402 objects.
+fn with_standard_units(model: &Model, options: &Options) -> Options {
+    let mut o = options.clone();
+    o.sidecar = standard::effective_sidecar(model, options.sidecar.as_ref(), &options.source_name);
+    o
+}
+
+/// Whether a diagnostic is shown when the codes in `allowed` are allowed: errors always are;
+/// a warning or note is not when its code is allowed (as rustc's and clippy's `allow`).
+pub fn shown(d: &Diagnostic, allowed: &[String]) -> bool {
+    d.severity == Severity::Error || !allowed.iter().any(|a| a.eq_ignore_ascii_case(d.code.0))
 }
 
 /// The first line of a generated file: the generator and the description it was generated

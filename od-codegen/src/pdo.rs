@@ -188,22 +188,50 @@ struct Field<'p> {
 struct Layout<'p> {
     dir: Direction,
     number: u16,
+    /// Whether the PDO's communication object exists (0x1400 + n, 0x1800 + n): without it the
+    /// mapping object is a table (a vendor's fixed mapping), not a PDO of its own.
+    comm: bool,
     mapping_index: u16,
     raw: Vec<u32>,
     fields: Vec<Field<'p>>,
     bits: u32,
 }
 
+/// The communication object of PDO `n` (0-based) of direction `dir`.
+fn comm_index(dir: Direction, n: u16) -> u16 {
+    match dir {
+        Direction::Receive => 0x1400 + n,
+        Direction::Transmit => 0x1800 + n,
+    }
+}
+
+/// The mapping object of PDO `n` (0-based) of direction `dir`.
+fn mapping_index(dir: Direction, n: u16) -> u16 {
+    match dir {
+        Direction::Receive => 0x1600 + n,
+        Direction::Transmit => 0x1A00 + n,
+    }
+}
+
+/// The name of the layout of mapping object `n` (0-based) of direction `dir`: `Rpdo1`,
+/// `Tpdo4` for a PDO (its communication object exists), `RxMappingTable1701` for a mapping
+/// object without one (a vendor's fixed mapping table: not a PDO of its own).
+pub(crate) fn layout_name(model: &Model, dir: Direction, n: u16) -> String {
+    let comm = model.object(comm_index(dir, n)).is_some();
+    match (dir, comm) {
+        (Direction::Receive, true) => format!("Rpdo{}", n + 1),
+        (Direction::Transmit, true) => format!("Tpdo{}", n + 1),
+        (Direction::Receive, false) => format!("RxMappingTable{:04X}", mapping_index(dir, n)),
+        (Direction::Transmit, false) => format!("TxMappingTable{:04X}", mapping_index(dir, n)),
+    }
+}
+
 /// What a deviation in a default mapping costs: said once, as the hint of its diagnostic.
-fn no_layout_hint(dir: Direction, n: u16, abort: Option<u32>) -> String {
-    let kind = match dir {
-        Direction::Receive => "Rpdo",
-        Direction::Transmit => "Tpdo",
-    };
+fn no_layout_hint(model: &Model, dir: Direction, n: u16, abort: Option<u32>) -> String {
+    let name = layout_name(model, dir, n);
     let mut h = format!(
-        "no typed layout `pdo::{kind}{}` is generated; the mapping parameters stay in the dictionary as data \
-         (served over SDO, remappable by a master)",
-        n + 1
+        "no typed layout `pdo::{name}` is generated; the mapping parameters stay in the dictionary as data \
+         (served over SDO, remappable by a master)"
     );
     if let Some(code) = abort {
         h.push_str(&format!("; a master writing this mapping over SDO gets abort code 0x{code:08X}"));
@@ -214,6 +242,7 @@ fn no_layout_hint(dir: Direction, n: u16, abort: Option<u32>) -> String {
 /// Reads the default mapping of a mapping object; a malformed one is a deviation (reported,
 /// `None`).
 fn read_mapping<'o>(
+    model: &Model,
     obj: &'o Object,
     dir: Direction,
     n: u16,
@@ -236,7 +265,7 @@ fn read_mapping<'o>(
                 count_entry,
                 format!("the number of mapped objects must be an integer in 0..=64{shown}"),
             );
-            sink.hint(no_layout_hint(dir, n, None));
+            sink.hint(no_layout_hint(model, dir, n, None));
             return None;
         }
     };
@@ -250,7 +279,7 @@ fn read_mapping<'o>(
                 count_entry,
                 format!("sub 0 says {count} objects are mapped, but sub {s} does not exist"),
             );
-            sink.hint(no_layout_hint(dir, n, None));
+            sink.hint(no_layout_hint(model, dir, n, None));
             return None;
         };
         match effective_value(e) {
@@ -265,7 +294,7 @@ fn read_mapping<'o>(
                     e,
                     "a mapping entry must be an UNSIGNED32 0xIIIISSLL (index, sub-index, bit length)".into(),
                 );
-                sink.hint(no_layout_hint(dir, n, None));
+                sink.hint(no_layout_hint(model, dir, n, None));
                 return None;
             }
         }
@@ -282,7 +311,7 @@ fn read_mapping<'o>(
                 "sub 0 counts {count} mapped objects, but every one is 0x00000000 (a placeholder: nothing is mapped)"
             ),
         );
-        sink.hint(no_layout_hint(dir, n, None));
+        sink.hint(no_layout_hint(model, dir, n, None));
         return None;
     }
     if let Some((_, _, e)) = out.iter().find(|(_, raw, _)| *raw == 0) {
@@ -293,7 +322,7 @@ fn read_mapping<'o>(
             e,
             format!("mapped object {} is 0x00000000 (nothing) inside the {count} entries sub 0 counts", e.sub.0),
         );
-        sink.hint(no_layout_hint(dir, n, None));
+        sink.hint(no_layout_hint(model, dir, n, None));
         return None;
     }
     Some(out)
@@ -308,7 +337,7 @@ fn layouts<'p>(model: &Model, plan: &'p Plan<'p>, sink: &mut Sink) -> Vec<Layout
             Role::TpdoMapping(n) => (Direction::Transmit, n),
             _ => continue,
         };
-        let Some(entries) = read_mapping(obj, dir, n, sink) else { continue };
+        let Some(entries) = read_mapping(model, obj, dir, n, sink) else { continue };
         if entries.is_empty() {
             continue;
         }
@@ -324,7 +353,7 @@ fn layouts<'p>(model: &Model, plan: &'p Plan<'p>, sink: &mut Sink) -> Vec<Layout
             upto.push(*raw);
             if let Err(me) = check_with_plan(plan, dir, &upto) {
                 sink.at_entry(sink.deviation(), me.code, obj, e, me.message);
-                sink.hint(no_layout_hint(dir, n, Some(me.abort_code)));
+                sink.hint(no_layout_hint(model, dir, n, Some(me.abort_code)));
                 ok = false;
                 break;
             }
@@ -374,13 +403,33 @@ fn layouts<'p>(model: &Model, plan: &'p Plan<'p>, sink: &mut Sink) -> Vec<Layout
                 obj,
                 format!("the default mapping carries {total} bits; a PDO carries at most 64"),
             );
-            sink.hint(no_layout_hint(dir, n, Some(AbortCode::PDO_LENGTH_EXCEEDED.0)));
+            sink.hint(no_layout_hint(model, dir, n, Some(AbortCode::PDO_LENGTH_EXCEEDED.0)));
             ok = false;
+        }
+        let comm = model.object(comm_index(dir, n)).is_some();
+        if ok && !comm {
+            let name = layout_name(model, dir, n);
+            sink.at_object(
+                Severity::Note,
+                diag::PDO_NO_COMM,
+                obj,
+                format!(
+                    "mapping object 0x{:04X} has no communication object 0x{:04X}: a mapping table, not a PDO \
+                     of its own",
+                    obj.index.0,
+                    comm_index(dir, n)
+                ),
+            );
+            sink.hint(format!(
+                "its layout is `pdo::{name}`; a generated client has no PDO method for it (a master cannot \
+                 configure or address a PDO without its communication object)"
+            ));
         }
         if ok {
             out.push(Layout {
                 dir,
                 number: n + 1,
+                comm,
                 mapping_index: obj.index.0,
                 raw: entries.iter().map(|(_, r, _)| *r).collect(),
                 fields,
@@ -445,10 +494,17 @@ fn unpack_expr(f: &Field<'_>, e: &PEntry<'_>) -> TokenStream {
     }
 }
 
-/// Each generated layout's direction, number and mapping entries (for the client, which
-/// implements `od_master::remote::PdoLayout` for them).
+/// Each generated layout of a PDO whose communication and mapping objects both exist: its
+/// direction, number and mapping entries (for the client, which implements
+/// `od_master::remote::PdoLayout` for them and gives each a method). Mapping tables without a
+/// communication object are left out.
 pub(crate) fn layout_summaries(model: &Model, plan: &Plan<'_>, sink: &mut Sink) -> Vec<(Direction, u16, Vec<u32>)> {
-    layouts(model, plan, sink).into_iter().map(|l| (l.dir, l.number, l.raw)).collect()
+    layouts(model, plan, sink).into_iter().filter(|l| l.comm).map(|l| (l.dir, l.number, l.raw)).collect()
+}
+
+/// Checks the default mappings as [`module`] does, for their diagnostics only.
+pub(crate) fn check_layouts(model: &Model, plan: &Plan<'_>, sink: &mut Sink) {
+    layouts(model, plan, sink);
 }
 
 /// `pub mod pdo { … }`, or nothing when the device has no default mapping.
@@ -460,12 +516,12 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sink: &mut Sink) -> TokenSt
             Direction::Receive => ("Rpdo", "received"),
             Direction::Transmit => ("Tpdo", "transmitted"),
         };
-        let name = format_ident!("{kind}{}", l.number);
+        let name = format_ident!("{}", layout_name(model, l.dir, l.number - 1));
         let len = l.bits.div_ceil(8) as usize;
         let len_lit = proc_macro2::Literal::usize_unsuffixed(len);
         let n_map = proc_macro2::Literal::usize_unsuffixed(l.raw.len());
         let raw = l.raw.iter().map(|r| lit::hex(*r as u64, 8));
-        let mut doc = vec![
+        let head = if l.comm {
             format!(
                 "{} {} ({} by the device), default mapping of `0x{:04X}`: {} bits in {len} bytes.",
                 kind.to_uppercase(),
@@ -473,11 +529,19 @@ pub(crate) fn module(model: &Model, plan: &Plan<'_>, sink: &mut Sink) -> TokenSt
                 verb,
                 l.mapping_index,
                 l.bits
-            ),
-            String::new(),
-            "| bits | object | field |".to_owned(),
-            "|------|--------|-------|".to_owned(),
-        ];
+            )
+        } else {
+            format!(
+                "Mapping table `0x{:04X}` ({} layout, {} bits in {len} bytes): the description has no \
+                 communication object `0x{:04X}`, so this is not a PDO of its own (a vendor's fixed mapping).",
+                l.mapping_index,
+                verb,
+                l.bits,
+                comm_index(l.dir, l.number - 1)
+            )
+        };
+        let mut doc =
+            vec![head, String::new(), "| bits | object | field |".to_owned(), "|------|--------|-------|".to_owned()];
         for f in &l.fields {
             let range = format!("{}..{}", f.offset, f.offset + f.bits);
             match f.entry {

@@ -51,17 +51,19 @@ pub(crate) fn object_dictionary(input: TokenStream) -> TokenStream {
     }
 }
 
-/// `include_eds!("path", mod name, strict, client)`.
+/// `include_eds!("path", mod name, strict, client, allow(G0104, E0502))`.
 struct IncludeArgs {
     path: LitStr,
     module: Option<Ident>,
     strict: bool,
     client: bool,
+    /// Codes whose warnings are not reported (`warnings`: none is).
+    allow: Vec<String>,
 }
 
 fn include_args(input: ParseStream<'_>) -> syn::Result<IncludeArgs> {
     let path: LitStr = input.parse()?;
-    let mut args = IncludeArgs { path, module: None, strict: false, client: false };
+    let mut args = IncludeArgs { path, module: None, strict: false, client: false, allow: Vec::new() };
     while !input.is_empty() {
         input.parse::<syn::Token![,]>()?;
         if input.is_empty() {
@@ -80,8 +82,28 @@ fn include_args(input: ParseStream<'_>) -> syn::Result<IncludeArgs> {
             args.client = true;
             continue;
         }
+        if id == "allow" {
+            let inner;
+            syn::parenthesized!(inner in input);
+            let codes = syn::punctuated::Punctuated::<Ident, syn::Token![,]>::parse_terminated(&inner)?;
+            for c in codes {
+                let code = c.to_string();
+                let known = code == "warnings"
+                    || (code.len() == 5
+                        && code.starts_with(['E', 'G', 'W', 'N'])
+                        && code[1..].chars().all(|ch| ch.is_ascii_digit()));
+                if !known {
+                    return Err(syn::Error::new(
+                        c.span(),
+                        "expected a diagnostic code such as `G0104` or `E0502`, or `warnings` for all",
+                    ));
+                }
+                args.allow.push(code);
+            }
+            continue;
+        }
         if id != "strict" {
-            return Err(syn::Error::new(id.span(), "expected `mod name`, `strict` or `client`"));
+            return Err(syn::Error::new(id.span(), "expected `mod name`, `strict`, `client` or `allow(CODE, …)`"));
         }
         args.strict = true;
     }
@@ -117,7 +139,33 @@ pub(crate) fn include_eds(input: TokenStream, manifest_dir: Option<&Path>) -> To
     for p in &included.tracked {
         tokens.extend(quote! { const _: &[u8] = include_bytes!(#p); });
     }
+    tokens.extend(included.warnings);
     tokens
+}
+
+/// Each warning as a warning of the compiler at the macro's path literal (a proc macro on
+/// stable Rust has no warning of its own: the use of a deprecated constant whose note is the
+/// diagnostic, as `odgen check` and a build script say it).
+fn warning_tokens(lines: &[String], span: proc_macro2::Span) -> TokenStream {
+    let mut out = TokenStream::new();
+    for line in lines {
+        let note = format!("{line} (`include_eds!(…, allow({}))` silences it)", code_of(line));
+        let name = Ident::new("od_codegen_warning", span);
+        out.extend(quote::quote_spanned! {span=>
+            const _: () = {
+                #[deprecated(note = #note)]
+                #[allow(non_upper_case_globals)]
+                const #name: () = ();
+                #name
+            };
+        });
+    }
+    out
+}
+
+/// The code in a short line `file:line:col: warning[G0104]: message`.
+fn code_of(line: &str) -> &str {
+    line.split_once("warning[").and_then(|(_, rest)| rest.split_once(']')).map_or("CODE", |(c, _)| c)
 }
 
 /// What `include_eds!` expands to.
@@ -126,6 +174,11 @@ pub(crate) struct Included {
     pub module: TokenStream,
     /// The absolute paths of the files read (the description, then its sidecar if any).
     pub tracked: Vec<String>,
+    /// The warnings not allowed, as compiler warnings.
+    pub warnings: TokenStream,
+    /// The same, as short lines (`file:line:col: warning[CODE]: message`).
+    #[cfg_attr(not(test), allow(dead_code))]
+    pub warning_lines: Vec<String>,
 }
 
 /// Reads, validates and generates; every error is on the path literal.
@@ -181,5 +234,20 @@ pub(crate) fn include(input: TokenStream, manifest_dir: Option<&Path>) -> syn::R
         .iter()
         .map(|p| p.to_str().map(str::to_owned).ok_or_else(|| err(format!("the path `{}` is not UTF-8", p.display()))))
         .collect::<syn::Result<Vec<_>>>()?;
-    Ok(Included { module: generated.tokens, tracked })
+    // What a build script and `odgen check` report: the reader's and the generator's
+    // warnings, without the allowed codes.
+    let warning_lines: Vec<String> = if args.allow.iter().any(|a| a == "warnings") {
+        Vec::new()
+    } else {
+        let mut w: Vec<&Diagnostic> = parsed
+            .diagnostics
+            .iter()
+            .chain(&generated.diagnostics)
+            .filter(|d| d.severity == Severity::Warning && od_codegen::shown(d, &args.allow))
+            .collect();
+        w.sort_by_key(|d| d.at.map_or((usize::MAX, 0), |a| (a.line as usize, a.col as usize)));
+        w.into_iter().map(od_codegen::diag::short_line).collect()
+    };
+    let warnings = warning_tokens(&warning_lines, lit.span());
+    Ok(Included { module: generated.tokens, tracked, warnings, warning_lines })
 }

@@ -94,6 +94,7 @@
 //! od_macros::include_eds!("devices/camozzi-drvi.eds");                // pub mod camozzi_drvi
 //! od_macros::include_eds!("devices/camozzi-drvi.eds", mod drvi, strict);
 //! od_macros::include_eds!("devices/camozzi-drvi.eds", mod drvi, client); // + drvi::remote::Remote
+//! od_macros::include_eds!("vendor/akd.eds", mod akd, allow(G0104, E0502)); // those codes not reported
 //! ```
 //!
 //! The path is relative to the crate's `Cargo.toml` (`CARGO_MANIFEST_DIR`). A sidecar beside
@@ -101,7 +102,11 @@
 //! the same one a build script would write. Both files are tracked (through `include_bytes!`),
 //! so editing them rebuilds the crate. The reader's errors (lenient unless `strict`) and the
 //! generator's errors are reported on the path literal, as `file:line:col: message` with the
-//! offending line quoted.
+//! offending line quoted. Warnings (what `odgen check` and a build script with
+//! `od_codegen::Builder` report for the file: the same codes and text) are compiler warnings
+//! on the path literal, one short line each (a proc macro has no warnings of its own on stable
+//! Rust: each is the use of a deprecated constant whose note is the diagnostic);
+//! `allow(CODE, …)` silences codes, `allow(warnings)` all of them.
 #![deny(missing_docs)]
 
 mod ast;

@@ -421,7 +421,37 @@ fn include_eds_io_and_argument_errors() {
     let no_dir = include_errors(quote! { "x.eds" }, None);
     assert!(no_dir.contains("CARGO_MANIFEST_DIR"), "{no_dir}");
     let bad = include_errors(quote! { "x.eds", colour }, Some(&manifest_dir()));
-    assert_eq!(bad, "expected `mod name`, `strict` or `client`");
+    assert_eq!(bad, "expected `mod name`, `strict`, `client` or `allow(CODE, …)`");
     let not_lit = include_errors(quote! { devices }, Some(&manifest_dir()));
     assert_eq!(not_lit, "expected string literal");
+}
+
+#[test]
+fn include_eds_reports_the_warnings_a_build_reports_and_allow_silences_them() {
+    // The generator's fixture with deviations: the same short lines as the Builder prints.
+    let root = manifest_dir().parent().unwrap().to_path_buf();
+    let path = "od-codegen/tests/fixtures/vendor-quirks.eds";
+    let included = expand::include(quote! { #path, mod quirks }, Some(&root)).unwrap();
+    let built = od_codegen::Builder::new()
+        .root(&root)
+        .cargo_metadata(false)
+        .device("quirks", path)
+        .generate_all()
+        .remove(0)
+        .unwrap();
+    assert!(!included.warning_lines.is_empty());
+    assert_eq!(included.warning_lines, built.short_lines(eds::diag::Severity::Warning));
+    let tokens = included.warnings.to_string();
+    assert!(tokens.contains("deprecated") && tokens.contains("warning[G0108]"), "{tokens}");
+
+    // One code allowed: its lines go; all allowed: none is left.
+    let allowed = expand::include(quote! { #path, mod quirks, allow(G0108) }, Some(&root)).unwrap();
+    assert!(!allowed.warning_lines.iter().any(|l| l.contains("[G0108]")));
+    assert!(allowed.warning_lines.len() < included.warning_lines.len());
+    let none = expand::include(quote! { #path, allow(warnings) }, Some(&root)).unwrap();
+    assert!(none.warning_lines.is_empty() && none.warnings.is_empty());
+
+    // A misspelt code is an error on it.
+    let e = include_errors(quote! { #path, allow(G01) }, Some(&root));
+    assert!(e.contains("expected a diagnostic code"), "{e}");
 }

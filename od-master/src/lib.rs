@@ -27,6 +27,7 @@ pub mod error;
 pub mod event;
 pub mod lss;
 pub mod node;
+pub mod profile;
 pub mod register;
 pub mod remote;
 mod sdo_options;

@@ -50,6 +50,16 @@ enum Command {
     )]
     Gen(cmd::generate::Args),
     #[command(
+        about = "List the names the generated code gives each entry, with index, standard name, type, access and unit",
+        long_about = None
+    )]
+    Names(cmd::names::Args),
+    #[command(
+        about = "Write a starting sidecar (units, dimensions, factor group) from a file's CiA 402 objects",
+        long_about = None
+    )]
+    Sidecar(cmd::sidecar::Args),
+    #[command(
         name = "bench-read",
         about = "Measure read+validate throughput (used by scripts/bench-read.sh)",
         long_about = None,
@@ -66,6 +76,8 @@ fn main() -> ExitCode {
         Command::Dcf(args) => cmd::dcf::run(args),
         Command::Diff(args) => cmd::diff::run(args),
         Command::Gen(args) => cmd::generate::run(args),
+        Command::Names(args) => cmd::names::run(args),
+        Command::Sidecar(args) => cmd::sidecar::run(args),
         Command::BenchRead(args) => cmd::bench_read::run(args),
     }
 }

@@ -134,8 +134,8 @@ fn pdo_layouts_are_bit_exact() {
 
     let mut od = Dictionary::new(1);
     od.set_position_actual_value(-123_456).unwrap();
-    let t2 = pdo::Tpdo2::from_dictionary(&od);
-    assert_eq!(pdo::Tpdo2::LEN, 8);
+    let t2 = pdo::TxMappingTable1A01::from_dictionary(&od);
+    assert_eq!(pdo::TxMappingTable1A01::LEN, 8);
     assert_eq!(t2.pack()[..4], (-123_456i32).to_le_bytes());
     let mut od2 = Dictionary::new(1);
     pdo::Rpdo1 { controlword: 0x0F, modes_of_operation: 99 }.to_dictionary(&mut od2).unwrap_err();
@@ -165,10 +165,10 @@ proptest! {
 
     #[test]
     fn tpdo2_round_trips(p: i32, v: i32) {
-        let t = pdo::Tpdo2 { position_actual_value: p, velocity_actual_value: v };
+        let t = pdo::TxMappingTable1A01 { position_actual_value: p, velocity_actual_value: v };
         let bytes = t.pack();
         prop_assert_eq!(&bytes[..4], &p.to_le_bytes());
-        prop_assert_eq!(pdo::Tpdo2::unpack(&bytes), Ok(t));
+        prop_assert_eq!(pdo::TxMappingTable1A01::unpack(&bytes), Ok(t));
     }
 
     #[test]

@@ -192,6 +192,14 @@ fn every_description_generates_a_client_that_compiles_with_warnings_denied() {
     std::fs::create_dir_all(&src).unwrap();
     let mut builder = Builder::new().cargo_metadata(false).client(true).out_dir(&src);
     let mut modules = Vec::new();
+    // The vendor files' own methods of CiA 402's motion objects, typed by dimension without a
+    // sidecar, and a program written once against the standard names, used with every drive's
+    // client (the corpus's CiA 402 files, the project's DRVI, DRCS and AKD).
+    let mut standard_users = String::new();
+    let mut drives = Vec::new();
+    // Each corpus module's objects, to check that every PDO method has both its objects.
+    let mut pdo_objects: std::collections::BTreeMap<String, std::collections::BTreeSet<u16>> = Default::default();
+    let mut pdo_methods = 0;
     for (i, f) in files.iter().enumerate() {
         let parsed = eds::read_file(f, &eds::Options::lenient()).unwrap();
         if parsed.has_errors() {
@@ -199,22 +207,43 @@ fn every_description_generates_a_client_that_compiles_with_warnings_denied() {
         }
         let m = module_name(i, f);
         builder = builder.device(&m, f).no_sidecar();
+        standard_users.push_str(&typed_by_dimension(&m, &parsed.model));
+        pdo_objects.insert(m.clone(), parsed.model.objects.keys().map(|i| i.0).collect());
+        if od_codegen::standard::has_cia402(&parsed.model) {
+            drives.push(m.clone());
+        }
         modules.push(m);
     }
     for (m, file) in [("drvi", "camozzi-drvi.eds"), ("drcs", "camozzi-drcs.eds"), ("akd", "kollmorgen-akd.eds")] {
         builder = builder.device(m, root.join("devices").join(file));
         modules.push(m.to_owned());
+        drives.push(m.to_owned());
     }
     let mut failures = Vec::new();
     for r in builder.generate_each() {
         match r {
             Ok(o) => {
+                if let Some(objects) = pdo_objects.get(&o.module) {
+                    for (comm, mapping) in pdo_methods_objects(&o.text) {
+                        pdo_methods += 1;
+                        for index in [comm, mapping] {
+                            if !objects.contains(&index) {
+                                failures.push(format!(
+                                    "{}: a PDO method whose object {index:04X}h is not in the description",
+                                    o.module
+                                ));
+                            }
+                        }
+                    }
+                }
                 od_codegen::write_if_changed(&src.join(&o.file_name), &o.text).unwrap();
             }
             Err(e) => failures.push(e.to_string()),
         }
     }
     assert!(failures.is_empty(), "client generation failed:\n{}", failures.join("\n\n"));
+    assert!(pdo_methods > 0 || corpus().is_none(), "the corpus gives PDO methods");
+    println!("{pdo_methods} PDO methods of corpus clients, each with its communication and mapping objects");
     let random_models: u64 = std::env::var("ODCODEGEN_RANDOM_MODELS").ok().and_then(|n| n.parse().ok()).unwrap_or(40);
     for seed in 0..random_models {
         let m = format!("random_{seed:02}");
@@ -233,6 +262,13 @@ fn every_description_generates_a_client_that_compiles_with_warnings_denied() {
     for m in &modules {
         lib.push_str(&format!("include!(\"{m}.rs\");\n"));
     }
+    lib.push_str(STANDARD_USER);
+    lib.push_str("\n/// Every drive's client through the one program.\npub fn every_drive() {\n");
+    for d in &drives {
+        lib.push_str(&format!("    let _ = standard_user::move_to::<{d}::remote::Remote>;\n"));
+    }
+    lib.push_str("}\n");
+    lib.push_str(&standard_users);
     od_codegen::write_if_changed(&src.join("lib.rs"), &lib).unwrap();
     let manifest = format!(
         "[package]\nname = \"od-codegen-compile-all-client\"\nversion = \"0.0.0\"\nedition = \"2024\"\npublish = false\n\n\
@@ -251,4 +287,79 @@ fn every_description_generates_a_client_that_compiles_with_warnings_denied() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     println!("{} clients, checked in {:.1?}", modules.len(), started.elapsed());
     assert!(out.status.success(), "the generated clients do not compile (crate at {}):\n{stderr}", krate.display());
+}
+
+/// A program written once against the standard names (`od_master::profile`), for any drive.
+const STANDARD_USER: &str = r#"
+/// Written against the standard names only.
+pub mod standard_user {
+    use od_master::profile::Cia402;
+    use od_master::remote::{Quantity, Scaling, dim};
+
+    /// Sets the profile velocity, moves, reads the state and the identity.
+    pub async fn move_to<D: Cia402>(
+        drive: &D,
+        units: &dyn Scaling,
+        to: Quantity<dim::Position>,
+        speed: Quantity<dim::Velocity>,
+    ) -> Result<u16, od_master::Error> {
+        drive.profile_velocity()?.write_in(units, speed).await?;
+        drive.target_position()?.write_in(units, to).await?;
+        drive.controlword()?.write(0x003F).await?;
+        let _at: Quantity<dim::Position> = drive.position_actual_value()?.read_in(units).await?;
+        let _vendor = drive.vendor_id()?.read().await?;
+        drive.statusword()?.read().await
+    }
+
+    /// Takes only a handle of a position.
+    pub fn position<T, A>(_: &od_master::remote::Object<'_, T, A, dim::Position>) {}
+    /// Takes only a handle of a velocity.
+    pub fn velocity<T, A>(_: &od_master::remote::Object<'_, T, A, dim::Velocity>) {}
+}
+"#;
+
+/// For a description's module `m`: a function that hands its own methods of 607Ah, 6064h
+/// (positions) and 60FFh, 6081h (velocities) to functions that take only handles of that
+/// dimension, so the crate compiles only if they are typed by dimension (no sidecar).
+fn typed_by_dimension(m: &str, model: &eds::model::Model) -> String {
+    let names = od_codegen::accessor_names(model);
+    let name = |index: u16| names.iter().find(|(i, s, _)| *i == index && *s == 0).map(|(_, _, n)| n.clone());
+    let mut body = String::new();
+    for (index, check) in [(0x607A, "position"), (0x6064, "position"), (0x60FF, "velocity"), (0x6081, "velocity")] {
+        let integer = model.entry(index, 0).is_some_and(|e| {
+            e.data_type.bits().is_some_and(|b| b > 1 && b <= 64)
+                && !matches!(e.data_type, eds::model::DataType::Real32 | eds::model::DataType::Real64)
+        });
+        if let Some(n) = name(index).filter(|_| integer) {
+            body.push_str(&format!("    standard_user::{check}(&r.{n}());\n"));
+        }
+    }
+    if body.is_empty() {
+        return String::new();
+    }
+    format!(
+        "\n/// `{m}`'s motion objects, typed by dimension.\npub fn typed_{m}(r: &{m}::remote::Remote) {{\n{body}}}\n"
+    )
+}
+
+/// The communication and mapping objects of each PDO a generated client has a method for
+/// (from its `PdoLayout` impls: `DIRECTION` and `NUMBER`).
+fn pdo_methods_objects(text: &str) -> Vec<(u16, u16)> {
+    let mut out = Vec::new();
+    for block in text.split("impl ::od_master::remote::PdoLayout for").skip(1) {
+        let receive = block
+            .split("const DIRECTION: ::od_runtime::pdo::Direction = ::od_runtime::pdo::Direction::")
+            .nth(1)
+            .expect("a PdoLayout impl has DIRECTION")
+            .starts_with("Receive");
+        let number: u16 = block
+            .split("const NUMBER: u16 = ")
+            .nth(1)
+            .and_then(|r| r.split(';').next())
+            .and_then(|n| n.trim().parse().ok())
+            .expect("a PdoLayout impl has NUMBER");
+        let n = number - 1;
+        out.push(if receive { (0x1400 + n, 0x1600 + n) } else { (0x1800 + n, 0x1A00 + n) });
+    }
+    out
 }

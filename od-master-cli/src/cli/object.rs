@@ -135,6 +135,13 @@ impl Names {
                 }
             }
         }
+        // The standard names (CiA 301, CiA 402) of the objects the file has, whatever the vendor
+        // called them.
+        for o in od_codegen::standard::OBJECTS {
+            if model.entry(o.index, o.sub).is_some() && !names.iter().any(|(n, _, _)| n == o.name) {
+                names.push((o.name.to_owned(), o.index, o.sub));
+            }
+        }
         Self { file: file.to_owned(), names }
     }
 
@@ -144,13 +151,23 @@ impl Names {
         if let Some((n, i, s)) = self.names.iter().find(|(n, _, _)| *n == wanted) {
             return Ok((*i, *s, n.clone()));
         }
+        // A record's (or array's) name: its sub-entries are what was meant.
+        let mut suggestions: Vec<String> = Vec::new();
+        let dotted = format!("{wanted}.");
+        for (n, _, _) in &self.names {
+            if n.starts_with(&dotted) && suggestions.len() < 16 {
+                suggestions.push(n.clone());
+            }
+        }
+        if !suggestions.is_empty() {
+            return Err(ObjectError::UnknownName { name: name.to_owned(), file: self.file.clone(), suggestions });
+        }
         let mut scored: Vec<(usize, &str)> =
             self.names.iter().map(|(n, _, _)| (distance(&wanted, n), n.as_str())).collect();
         scored.sort();
         scored.dedup_by(|a, b| a.1 == b.1);
         let limit = wanted.len().max(3) / 2 + 1;
-        let mut suggestions: Vec<String> =
-            scored.iter().filter(|(d, _)| *d <= limit).take(5).map(|(_, n)| (*n).to_owned()).collect();
+        suggestions = scored.iter().filter(|(d, _)| *d <= limit).take(5).map(|(_, n)| (*n).to_owned()).collect();
         // Names containing the word asked for are close too.
         if suggestions.len() < 5 {
             for (n, _, _) in &self.names {
@@ -275,5 +292,19 @@ mod device_names {
         let ObjectError::UnknownName { suggestions, .. } = &err else { panic!("{err}") };
         assert_eq!(suggestions.first().map(String::as_str), Some("statusword"), "{err}");
         assert!(matches!(resolve("statusword", None), Err(ObjectError::Syntax(_))));
+    }
+
+    #[test]
+    fn a_records_name_suggests_its_sub_entries_and_standard_names_resolve() {
+        let model = drvi();
+        let names = Names::new("drvi.eds", &model);
+        let object = od_codegen::object_names(&model).into_iter().find(|(i, _)| *i == 0x1018).unwrap().1;
+        let err = resolve(&object, Some((&names, &model))).unwrap_err();
+        let ObjectError::UnknownName { suggestions, .. } = &err else { panic!("{err}") };
+        assert!(suggestions.len() >= 4, "{err}");
+        assert!(suggestions.iter().all(|s| s.starts_with(&format!("{object}."))), "{err}");
+        // CiA 301's name of 1018h sub 1, whatever the file calls it.
+        let t = resolve("vendor_id", Some((&names, &model))).unwrap();
+        assert_eq!((t.index, t.sub), (0x1018, 1));
     }
 }

@@ -7,7 +7,9 @@
 //! this test puts them first (trybuild builds each case in `<target>/tests/trybuild/od-master/`,
 //! three levels below the target directory): the DRVI's and the AKD's descriptions and
 //! sidecars as they are, and the DRVI's with 607Ah removed (through the reader and writer, so
-//! the file stays a valid EDS), without its sidecar, which gives 607Ah a dimension.
+//! the file stays a valid EDS), without its sidecar, which gives 607Ah a dimension; and the
+//! DRVI's as a vendor ships it, without a sidecar, whose positions and velocities are typed by
+//! CiA 402's dimensions all the same.
 
 use std::path::Path;
 
@@ -24,6 +26,9 @@ fn client_compile_failures() {
     assert!(!parsed.has_errors());
     let mut model = parsed.model;
     assert!(model.objects.remove(&eds::model::Index(0x607A)).is_some());
+    // The DRVI's description alone, without its sidecar: a vendor's file as users have it.
+    let alone = std::fs::read(root.join("devices/camozzi-drvi.eds")).unwrap();
+    od_codegen::write_if_changed(&dir.join("vendor-drvi.eds"), std::str::from_utf8(&alone).unwrap()).unwrap();
     let trimmed = eds::write::write_eds(&model);
     od_codegen::write_if_changed(&dir.join("drvi-without-607a.eds"), &trimmed).unwrap();
 

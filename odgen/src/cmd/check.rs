@@ -71,6 +71,14 @@ pub struct Args {
     /// the files whatever the number.
     #[arg(long, short = 'j')]
     pub jobs: Option<usize>,
+    /// Silences a diagnostic code (`--allow G0104 --allow E0301`): its warnings and notes are
+    /// neither printed nor counted; errors still are (as `od_codegen::Builder::allow`).
+    #[arg(long = "allow", value_name = "CODE")]
+    pub allow: Vec<String>,
+    /// Only the reader's diagnostics, not the code generator's (which `odgen check` adds by
+    /// default, as a build with `od_codegen::Builder` reports them).
+    #[arg(long)]
+    pub no_codegen: bool,
     /// EDS or DCF files, or folders: a folder stands for the `.eds` and `.dcf` files in it and
     /// in its subfolders.
     #[arg(required = true)]
@@ -153,7 +161,14 @@ pub fn run(args: Args) -> u8 {
     let level = args.level();
     let options = if args.strict { eds::Options::strict() } else { eds::Options::lenient() };
     // Diagnostics below the level are counted, not made (the reader builds no text for them).
-    let check = Check { options: options.keep_from(level.least()), format: args.format, level };
+    let check = Check {
+        options: options.keep_from(level.least()),
+        format: args.format,
+        level,
+        allowed: args.allow.clone(),
+        codegen: !args.no_codegen,
+        strict: args.strict,
+    };
     let (files, found) = super::expand_folders(&args.files);
     // Every file is probed (for its size) once, before any is read: several threads take the
     // largest first, one thread makes its reader for the largest.
@@ -176,6 +191,11 @@ struct Check {
     options: eds::Options,
     format: Format,
     level: Level,
+    /// Codes not shown (`--allow`).
+    allowed: Vec<String>,
+    /// Whether the generator's diagnostics are added.
+    codegen: bool,
+    strict: bool,
 }
 
 /// What a run found so far: the counts, the files that could not be read (name and why), and
@@ -318,12 +338,47 @@ impl Check {
     ) -> std::io::Result<Counts> {
         READER.with_borrow_mut(|reader| {
             let reader = reader.get_or_insert_with(|| eds::Reader::with_room(room));
-            let parsed = reader.read_probed(probed, &self.options)?;
-            lead(writes_anything(&parsed, self.format, self.level), out);
-            let counts = render(&parsed, probed.path(), self.format, self.level, out);
+            let mut parsed = reader.read_probed(probed, &self.options)?;
+            let mut extra = if self.codegen { self.codegen_diagnostics(&parsed, probed.path()) } else { Vec::new() };
+            if !self.allowed.is_empty() {
+                parsed.diagnostics.retain(|d| od_codegen::shown(d, &self.allowed));
+                extra.retain(|d| od_codegen::shown(d, &self.allowed));
+            }
+            lead(writes_anything(&parsed, &extra, self.format, self.level), out);
+            let counts = render(&parsed, &extra, probed.path(), self.format, self.level, out);
             reader.recycle(parsed);
             Ok(counts)
         })
+    }
+}
+
+impl Check {
+    /// The code generator's diagnostics for a file read (those a build reports besides the
+    /// reader's), with the sidecar beside the file as the `Builder` reads it.
+    fn codegen_diagnostics(&self, parsed: &eds::Parsed, path: &std::path::Path) -> Vec<Diagnostic> {
+        let shown = parsed.document.source.name.clone();
+        let mut options = od_codegen::Options::new("device", shown.clone());
+        options.strict = self.strict;
+        let mut out = Vec::new();
+        let sidecar = path.with_extension("toml");
+        if sidecar.is_file() {
+            match od_codegen::sidecar::Sidecar::read(&sidecar) {
+                Ok(sc) => options.sidecar = Some(sc),
+                Err(e) => out.push(Diagnostic {
+                    severity: Severity::Error,
+                    code: od_codegen::diag::SIDECAR,
+                    message: e.to_string(),
+                    file: shown.as_str().into(),
+                    span: None,
+                    at: None,
+                    context: Vec::new(),
+                    hint: None,
+                }),
+            }
+        }
+        out.extend(od_codegen::diagnose(&parsed.model, &options));
+        // All counted; `render` shows those of the level.
+        out
     }
 }
 
@@ -358,22 +413,30 @@ fn separate(writes: bool, any: &mut bool, out: &mut Stream) {
 
 /// Whether a file's part of the output has anything in it (JSON and SARIF put a separator
 /// before each part that has; a JSON part always has the file's name).
-fn writes_anything(parsed: &eds::Parsed, format: Format, level: Level) -> bool {
+fn writes_anything(parsed: &eds::Parsed, extra: &[Diagnostic], format: Format, level: Level) -> bool {
     match format {
         Format::Human => false,
         Format::Json => true,
-        Format::Sarif => parsed.diagnostics.iter().any(|d| level.shows(d.severity)),
+        Format::Sarif => parsed.diagnostics.iter().chain(extra).any(|d| level.shows(d.severity)),
     }
 }
 
 /// Renders a file's part of the output into `out`, and gives its counts.
-fn render(parsed: &eds::Parsed, path: &std::path::Path, format: Format, level: Level, out: &mut impl Sink) -> Counts {
+fn render(
+    parsed: &eds::Parsed,
+    extra: &[Diagnostic],
+    path: &std::path::Path,
+    format: Format,
+    level: Level,
+    out: &mut impl Sink,
+) -> Counts {
     let mut counts = Counts::default();
     counts.add(&parsed.diagnostics);
+    counts.add(extra);
     counts.warnings += parsed.not_kept.warnings;
     counts.notes += parsed.not_kept.notes;
     let source = &parsed.document.source;
-    let shown = parsed.diagnostics.iter().filter(|d| level.shows(d.severity));
+    let shown = parsed.diagnostics.iter().chain(extra).filter(|d| level.shows(d.severity));
     match format {
         Format::Human => {
             for d in shown {

@@ -7,7 +7,9 @@ pub mod diff;
 pub mod dump;
 pub mod fmt;
 pub mod generate;
+pub mod names;
 pub mod sarif;
+pub mod sidecar;
 
 use std::path::{Path, PathBuf};
 

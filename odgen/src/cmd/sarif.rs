@@ -3,7 +3,7 @@
 //! requests.
 //!
 //! One run; the tool's rules are every diagnostic code (`ruleIndex` is the code's place in
-//! [`eds::codes::ALL`]); one result per diagnostic, located by file, line and column (columns
+//! [`eds::codes::ALL`] followed by `od_codegen::diag::ALL`); one result per diagnostic, located by file, line and column (columns
 //! count characters: `columnKind` is `unicodeCodePoints`); files that could not be read are
 //! tool execution notifications of the run's invocation. Written directly, as it goes.
 
@@ -52,7 +52,7 @@ pub fn start(out: &mut Stream) {
             "\"tool\":{{\"driver\":{{\"name\":\"odgen\",\"version\":\"{}\",\"rules\":[",
             env!("CARGO_PKG_VERSION")
         );
-        for (i, info) in eds::codes::ALL.iter().enumerate() {
+        for (i, info) in rules().enumerate() {
             if i > 0 {
                 buf.push(',');
             }
@@ -69,9 +69,15 @@ pub fn start(out: &mut Stream) {
     });
 }
 
+/// The rules: the reader's codes ([`eds::codes::ALL`]), then the generator's
+/// ([`od_codegen::diag::ALL`]), which `odgen check` reports too.
+pub fn rules() -> impl Iterator<Item = &'static eds::codes::CodeInfo> {
+    eds::codes::ALL.iter().chain(od_codegen::diag::ALL)
+}
+
 /// Appends one result (a JSON object).
 pub fn push_result(buf: &mut String, d: &Diagnostic, source: &eds::source::SourceFile) {
-    let index = eds::codes::ALL.iter().position(|c| c.code == d.code);
+    let index = rules().position(|c| c.code == d.code);
     buf.push('{');
     let _ = write!(buf, "\"ruleId\":\"{}\",", d.code);
     if let Some(i) = index {

@@ -1,6 +1,7 @@
 //! The integration tests of `odgen`, one module per former test file, linked into one
 //! binary: `cargo test -p odgen --test it` runs them all, `... --test it -- MODULE::` one module.
 
+mod build_once;
 mod cli;
 mod common;
 mod diff;
