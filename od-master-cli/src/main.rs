@@ -5,6 +5,7 @@
 //! the node and the object), 2 bad usage or a bus that cannot be opened.
 
 mod cli;
+mod top;
 
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -118,6 +119,9 @@ enum Cmd {
         #[arg(long)]
         sequential: bool,
     },
+    /// A live full-screen view of the network: its nodes (NMT state, heartbeat, last EMCY,
+    /// CiA 402 state, mode, position, velocity), its events and its frames in words. q quits.
+    Top,
     /// Drives a CiA 402 axis.
     Axis {
         /// Node id (1..=127).
@@ -334,6 +338,7 @@ async fn run(args: Args) -> Result<(), Fail> {
         }
         Cmd::Scan { last } => scan(&bus, last.clamp(1, 127), args.json, args.timeout).await?,
         Cmd::Monitor { count, duration } => monitor(&bus, &devices, count, duration, args.json).await?,
+        Cmd::Top => top::run(&bus, &addr, &devices.by_node).await.map_err(|e| Fail(1, e))?,
         Cmd::Axis { node, action } => {
             let node = node_id(&node.to_string())?;
             let axis = Axis::new(bus.node(node).map_err(fail)?);

@@ -1,0 +1,134 @@
+//! `od-master top`: a live full-screen view of a CANopen network (nodes, events, frames).
+//!
+//! Three parts, as a terminal UI is best built: the [`model`] is updated by the master's events,
+//! the frames and the keys (no terminal, tested as is); the [`view`] draws a model (pure: tested
+//! against ratatui's test backend); [`run_loop`] is generic over the backend and redraws on a tick
+//! (20 Hz), never once a frame, so a busy bus costs the decoding and not the drawing.
+
+pub mod model;
+pub mod view;
+#[cfg(test)]
+mod tests;
+
+use std::collections::BTreeMap;
+use std::time::Duration;
+
+use crossterm::event::{Event as TermEvent, KeyEvent, KeyEventKind};
+use od_master::{Bus, Event, Watch};
+use ratatui::Terminal;
+use ratatui::backend::Backend;
+use tokio::sync::broadcast::error::TryRecvError;
+use tokio::sync::{broadcast, mpsc};
+use tokio::time::Instant;
+
+use crate::cli::device::Device;
+use model::Model;
+
+/// Redraws a second.
+pub const HZ: u64 = 20;
+
+/// The master's events and frames, taken into a model.
+pub struct Feed {
+    events: broadcast::Receiver<Event>,
+    frames: broadcast::Receiver<od_bus::CanFrame>,
+    start: Instant,
+}
+
+impl Feed {
+    /// Subscribes to `bus` from now on; times are counted from now.
+    pub fn new(bus: &Bus) -> Self {
+        Self { events: bus.events(), frames: bus.frames(), start: Instant::now() }
+    }
+
+    /// The time since the feed started.
+    pub fn now(&self) -> Duration {
+        self.start.elapsed()
+    }
+
+    /// Takes every event and frame waiting into `model` (frames a channel overran are counted
+    /// as dropped; a lost event is said among the events).
+    pub fn drain(&mut self, model: &mut Model, devices: &BTreeMap<u8, Device>) {
+        let now = self.now();
+        loop {
+            match self.events.try_recv() {
+                Ok(e) => model.on_event(now, &e, devices),
+                Err(TryRecvError::Lagged(n)) => model.note(now, format!("{n} events dropped (the view was too slow)")),
+                Err(_) => break,
+            }
+        }
+        loop {
+            match self.frames.try_recv() {
+                Ok(f) => model.on_frame(now, f.id(), f.is_remote(), f.data(), devices),
+                Err(TryRecvError::Lagged(n)) => model.dropped += n,
+                Err(_) => break,
+            }
+        }
+    }
+
+    /// Asks the master to watch the heartbeats whose period the model learnt, so that it reports
+    /// their loss and recovery.
+    pub async fn watch(&self, bus: &Bus, model: &mut Model) {
+        for (node, timeout) in std::mem::take(&mut model.watch) {
+            let timeout = u64::try_from(timeout.as_micros()).unwrap_or(u64::MAX);
+            let _ = bus.watch(node, Watch::Heartbeat { timeout }, None).await;
+        }
+    }
+}
+
+/// Runs the view on `terminal` until `q` or Ctrl-C: takes the keys from `keys`, the bus's
+/// traffic from `feed`, and redraws every `1/HZ` s.
+pub async fn run_loop<B: Backend>(
+    terminal: &mut Terminal<B>,
+    bus: &Bus,
+    devices: &BTreeMap<u8, Device>,
+    model: &mut Model,
+    feed: &mut Feed,
+    keys: &mut mpsc::Receiver<KeyEvent>,
+) -> Result<(), String> {
+    let mut tick = tokio::time::interval(Duration::from_millis(1000 / HZ));
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    loop {
+        tokio::select! {
+            _ = tick.tick() => {
+                feed.drain(model, devices);
+                feed.watch(bus, model).await;
+                let now = feed.now();
+                terminal.draw(|f| view::draw(f, model, now)).map_err(|e| format!("cannot draw: {e}"))?;
+            }
+            key = keys.recv() => match key {
+                Some(k) => model.on_key(k),
+                None => return Ok(()),
+            },
+        }
+        if model.quit {
+            return Ok(());
+        }
+    }
+}
+
+/// `od-master top` in this terminal: raw mode and the alternate screen, restored on the way
+/// out, on Ctrl-C (a key in raw mode) and on a panic (ratatui's hook restores, then reports).
+pub async fn run(bus: &Bus, addr: &str, devices: &BTreeMap<u8, Device>) -> Result<(), String> {
+    use std::io::IsTerminal;
+    if !std::io::stdout().is_terminal() {
+        return Err("top needs a terminal: run it in one (for a log, use `monitor`)".into());
+    }
+    // Keys come from a thread of their own: crossterm's read blocks.
+    let (tx, mut keys) = mpsc::channel(64);
+    std::thread::spawn(move || {
+        while let Ok(e) = crossterm::event::read() {
+            if let TermEvent::Key(k) = e
+                && k.kind != KeyEventKind::Release
+                && tx.blocking_send(k).is_err()
+            {
+                return;
+            }
+        }
+    });
+    let mut terminal = ratatui::try_init().map_err(|e| format!("cannot set up the terminal: {e}"))?;
+    let mut model = Model::new(addr);
+    let mut feed = Feed::new(bus);
+    let result = run_loop(&mut terminal, bus, devices, &mut model, &mut feed, &mut keys).await;
+    ratatui::try_restore().map_err(|e| format!("cannot restore the terminal: {e}"))?;
+    result
+}

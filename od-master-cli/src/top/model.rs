@@ -1,0 +1,486 @@
+//! What `top` shows, updated by the bus's events, its frames and the keys; no terminal, no
+//! clock (every update is given the time since the view started), so it is tested as is.
+
+use std::collections::{BTreeMap, VecDeque};
+use std::time::Duration;
+
+use crossterm::event::{KeyCode, KeyEvent, KeyModifiers};
+use od_master::{Event, NmtState, NodeEvent, State};
+
+use crate::cli::decode::{decode, emcy_class};
+use crate::cli::device::Device;
+
+/// The most events and frames kept (older ones are dropped; memory stays bounded).
+pub const KEEP_EVENTS: usize = 1000;
+/// See [`KEEP_EVENTS`].
+pub const KEEP_FRAMES: usize = 2000;
+
+/// The pane the arrows move in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Pane {
+    /// One row a node.
+    Nodes,
+    /// Events, newest on top.
+    Events,
+    /// Frames in words, newest on top.
+    Frames,
+}
+
+/// The last emergency of a node.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LastEmcy {
+    /// Its error code.
+    pub code: u16,
+    /// The device's text for it, else the CiA 301 class of the code.
+    pub text: String,
+    /// When it came.
+    pub at: Duration,
+}
+
+/// What the TPDOs of a CiA 402 drive tell.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Drive {
+    /// Statusword (6041h).
+    pub status: Option<u16>,
+    /// Modes of operation display (6061h).
+    pub mode: Option<i8>,
+    /// Position actual value (6064h), raw.
+    pub position: Option<i64>,
+    /// Velocity actual value (606Ch), raw.
+    pub velocity: Option<i64>,
+}
+
+/// A node heard from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NodeRow {
+    /// Node id.
+    pub id: u8,
+    /// From its EDS (ProductName) or its 1008h.
+    pub name: Option<String>,
+    /// NMT state of its last heartbeat.
+    pub nmt: Option<NmtState>,
+    /// When its last heartbeat came.
+    pub heard: Option<Duration>,
+    /// The time between its last two heartbeats.
+    pub period: Option<Duration>,
+    /// Reported lost by the master (and not recovered since).
+    pub lost: bool,
+    /// Its last emergency.
+    pub emcy: Option<LastEmcy>,
+    /// For a CiA 402 device.
+    pub drive: Option<Drive>,
+}
+
+/// How a node's heartbeat is doing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Health {
+    /// No heartbeat seen yet.
+    Unknown,
+    /// Within its period.
+    Alive,
+    /// Later than one and a half periods.
+    Late,
+    /// Reported lost, or three periods without a heartbeat.
+    Lost,
+}
+
+impl NodeRow {
+    fn new(id: u8, device: Option<&Device>) -> Self {
+        let name = device.and_then(|d| d.model.device_info.product_name.clone());
+        let drive = device.filter(|d| d.model.entry(0x6041, 0).is_some()).map(|_| Drive::default());
+        Self { id, name, nmt: None, heard: None, period: None, lost: false, emcy: None, drive }
+    }
+
+    /// Its heartbeat's health at `now`, and the age of its last heartbeat.
+    pub fn health(&self, now: Duration) -> (Health, Option<Duration>) {
+        let Some(heard) = self.heard else { return (if self.lost { Health::Lost } else { Health::Unknown }, None) };
+        let age = now.saturating_sub(heard);
+        let health = match self.period {
+            _ if self.lost => Health::Lost,
+            Some(p) if age > p * 3 => Health::Lost,
+            Some(p) if age > p * 3 / 2 => Health::Late,
+            _ => Health::Alive,
+        };
+        (health, Some(age))
+    }
+}
+
+/// A frame in words, as `monitor` says it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameLine {
+    /// When it came.
+    pub at: Duration,
+    /// `pdo`, `heartbeat`, `emcy`, ... ([`crate::cli::decode::Decoded::kind`]).
+    pub kind: &'static str,
+    /// The node it is from or for.
+    pub node: Option<u8>,
+    /// One line.
+    pub text: String,
+}
+
+/// The frames pane's filter: a node, a kind (a prefix: `sdo` takes both directions), or both.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Filter {
+    /// Only this node's frames.
+    pub node: Option<u8>,
+    /// Only frames whose kind starts with this.
+    pub kind: Option<String>,
+}
+
+impl Filter {
+    /// `3`, `pdo`, `3 emcy`, `node 3 sdo` (empty: everything). Errors say which word is wrong.
+    pub fn parse(text: &str) -> Result<Self, String> {
+        let mut f = Filter::default();
+        for word in text.split_whitespace().filter(|w| *w != "node") {
+            if let Ok(n) = word.parse::<u8>() {
+                if !(1..=127).contains(&n) {
+                    return Err(format!("filter: {n} is not a node id (1..=127)"));
+                }
+                f.node = Some(n);
+            } else if KINDS.iter().any(|k| k.starts_with(word)) {
+                f.kind = Some(word.to_owned());
+            } else {
+                return Err(format!("filter: `{word}` is neither a node id nor a kind ({})", KINDS.join(", ")));
+            }
+        }
+        Ok(f)
+    }
+
+    /// Whether `line` passes.
+    pub fn passes(&self, line: &FrameLine) -> bool {
+        self.node.is_none_or(|n| line.node == Some(n)) && self.kind.as_deref().is_none_or(|k| line.kind.starts_with(k))
+    }
+
+    /// As typed back.
+    pub fn text(&self) -> String {
+        let node = self.node.map(|n| format!("node {n}"));
+        [node, self.kind.clone()].into_iter().flatten().collect::<Vec<_>>().join(" ")
+    }
+}
+
+const KINDS: [&str; 12] = [
+    "nmt",
+    "sync",
+    "time",
+    "emcy",
+    "pdo",
+    "sdo-request",
+    "sdo-response",
+    "heartbeat",
+    "guard",
+    "lss",
+    "other",
+    "sdo",
+];
+
+/// Everything `top` shows.
+#[derive(Debug)]
+pub struct Model {
+    /// The bus's address, for the title.
+    pub bus: String,
+    /// By node id.
+    pub nodes: BTreeMap<u8, NodeRow>,
+    /// Newest first: when, and what.
+    pub events: VecDeque<(Duration, String)>,
+    /// Newest first.
+    pub frames: VecDeque<FrameLine>,
+    /// Frames received in all.
+    pub frame_count: u64,
+    /// Frames the view could not take in time (the bus's channel overran).
+    pub dropped: u64,
+    /// Frames pane frozen.
+    pub paused: bool,
+    /// The frames pane's filter.
+    pub filter: Filter,
+    /// The filter being typed (after `/`), and the last filter error.
+    pub input: Option<String>,
+    /// A line for the status bar (a filter error).
+    pub status: Option<String>,
+    /// The pane the arrows move in.
+    pub focus: Pane,
+    /// The selected node (its index in [`nodes`](Self::nodes)).
+    pub selected: usize,
+    /// Lines scrolled down in the events and frames panes.
+    pub scroll: [usize; 2],
+    /// `q` or Ctrl-C.
+    pub quit: bool,
+    /// Heartbeat consumer times to ask the master for (node, timeout): a node's period, once
+    /// known, so that the master reports it lost and recovered.
+    pub watch: Vec<(u8, Duration)>,
+}
+
+impl Model {
+    /// An empty view of the bus at `bus`.
+    pub fn new(bus: &str) -> Self {
+        Self {
+            bus: bus.to_owned(),
+            nodes: BTreeMap::new(),
+            events: VecDeque::new(),
+            frames: VecDeque::new(),
+            frame_count: 0,
+            dropped: 0,
+            paused: false,
+            filter: Filter::default(),
+            input: None,
+            status: None,
+            focus: Pane::Nodes,
+            selected: 0,
+            scroll: [0, 0],
+            quit: false,
+            watch: Vec::new(),
+        }
+    }
+
+    fn node(&mut self, id: u8, devices: &BTreeMap<u8, Device>) -> &mut NodeRow {
+        self.nodes.entry(id).or_insert_with(|| NodeRow::new(id, devices.get(&id)))
+    }
+
+    /// A line among the events.
+    pub fn note(&mut self, at: Duration, text: String) {
+        self.log(at, text);
+    }
+
+    fn log(&mut self, at: Duration, text: String) {
+        self.events.push_front((at, text));
+        self.events.truncate(KEEP_EVENTS);
+    }
+
+    /// An event of the master.
+    pub fn on_event(&mut self, at: Duration, event: &Event, devices: &BTreeMap<u8, Device>) {
+        match event {
+            Event::Node(e) => match *e {
+                NodeEvent::BootUp { node } => {
+                    let row = self.node(node, devices);
+                    row.nmt = Some(NmtState::PreOperational);
+                    row.lost = false;
+                    self.log(at, format!("node {node}: boot-up"));
+                }
+                NodeEvent::FirstSeen { node, state } => {
+                    self.node(node, devices);
+                    self.log(at, format!("node {node}: first heartbeat, {}", nmt_name(Some(state))));
+                }
+                NodeEvent::StateChanged { node, from, to } => {
+                    self.node(node, devices).nmt = Some(to);
+                    self.log(at, format!("node {node}: {} -> {}", nmt_name(Some(from)), nmt_name(Some(to))));
+                }
+                NodeEvent::Lost { node } => {
+                    self.node(node, devices).lost = true;
+                    self.log(at, format!("node {node}: heartbeat lost"));
+                }
+                NodeEvent::Recovered { node, state } => {
+                    let row = self.node(node, devices);
+                    row.lost = false;
+                    row.nmt = Some(state);
+                    self.log(at, format!("node {node}: recovered, {}", nmt_name(Some(state))));
+                }
+                NodeEvent::NeverSeen { node } => {
+                    self.node(node, devices).lost = true;
+                    self.log(at, format!("node {node}: never heard from"));
+                }
+                ref other => self.log(at, format!("{other:?}")),
+            },
+            Event::Emergency { emcy, text } => {
+                let device = devices.get(&emcy.node);
+                let text = text
+                    .clone()
+                    .or_else(|| device.and_then(|d| d.emcy_text(emcy.code, &emcy.vendor)).map(str::to_owned))
+                    .unwrap_or_else(|| emcy_class(emcy.code).to_owned());
+                let node = emcy.node;
+                let code = emcy.code;
+                self.node(node, devices).emcy = Some(LastEmcy { code, text: text.clone(), at });
+                self.log(at, format!("node {node}: EMCY {code:04X}h {text}, register {:02X}h", emcy.register));
+            }
+            Event::Link(state) => self.log(at, format!("link: {state:?}")),
+            Event::PdoError { cob_id, error } => self.log(at, format!("PDO {cob_id:03X}h: {error:?}")),
+        }
+    }
+
+    /// A frame received.
+    pub fn on_frame(&mut self, at: Duration, id: u32, rtr: bool, data: &[u8], devices: &BTreeMap<u8, Device>) {
+        self.frame_count += 1;
+        let d = decode(id, rtr, data, devices);
+        // A node is heard from by what it sends: heartbeats, EMCYs, SDO answers, its TPDOs.
+        if let (Some(node), "heartbeat" | "emcy" | "sdo-response" | "pdo") = (d.node, d.kind) {
+            let row = self.node(node, devices);
+            if d.kind == "heartbeat" {
+                if data[0] == 0 {
+                    // A boot-up: the heartbeat period starts anew.
+                    row.period = None;
+                    row.heard = None;
+                } else {
+                    if let Some(last) = row.heard {
+                        let first = row.period.is_none();
+                        row.period = Some(at.saturating_sub(last));
+                        if first && !row.period.is_some_and(|p| p.is_zero()) {
+                            self.watch.push((node, at.saturating_sub(last) * 3 / 2));
+                        }
+                    }
+                    let row = self.node(node, devices);
+                    row.heard = Some(at);
+                    row.nmt = match data[0] & 0x7F {
+                        0x04 => Some(NmtState::Stopped),
+                        0x05 => Some(NmtState::Operational),
+                        0x7F => Some(NmtState::PreOperational),
+                        _ => row.nmt,
+                    };
+                }
+            } else if d.kind == "pdo" {
+                if let Some(device) = devices.get(&node) {
+                    drive_fields(self.node(node, devices), device, node, id, data);
+                }
+            }
+        }
+        if !self.paused {
+            self.frames.push_front(FrameLine { at, kind: d.kind, node: d.node, text: d.text });
+            self.frames.truncate(KEEP_FRAMES);
+        }
+    }
+
+    /// The frames the filter passes, newest first.
+    pub fn shown_frames(&self) -> impl Iterator<Item = &FrameLine> {
+        self.frames.iter().filter(|f| self.filter.passes(f))
+    }
+
+    /// The selected node.
+    pub fn selected_node(&self) -> Option<&NodeRow> {
+        self.nodes.values().nth(self.selected)
+    }
+
+    /// A key.
+    pub fn on_key(&mut self, key: KeyEvent) {
+        if key.modifiers.contains(KeyModifiers::CONTROL) && key.code == KeyCode::Char('c') {
+            self.quit = true;
+            return;
+        }
+        if let Some(input) = &mut self.input {
+            match key.code {
+                KeyCode::Enter => {
+                    match Filter::parse(input) {
+                        Ok(f) => {
+                            self.filter = f;
+                            self.status = None;
+                            self.scroll[1] = 0;
+                        }
+                        Err(e) => self.status = Some(e),
+                    }
+                    self.input = None;
+                }
+                KeyCode::Esc => self.input = None,
+                KeyCode::Backspace => {
+                    input.pop();
+                }
+                KeyCode::Char(c) if input.len() < 40 => input.push(c),
+                _ => {}
+            }
+            return;
+        }
+        match key.code {
+            KeyCode::Char('q') => self.quit = true,
+            KeyCode::Tab => {
+                self.focus = match self.focus {
+                    Pane::Nodes => Pane::Events,
+                    Pane::Events => Pane::Frames,
+                    Pane::Frames => Pane::Nodes,
+                }
+            }
+            KeyCode::BackTab => {
+                self.focus = match self.focus {
+                    Pane::Nodes => Pane::Frames,
+                    Pane::Events => Pane::Nodes,
+                    Pane::Frames => Pane::Events,
+                }
+            }
+            KeyCode::Char('p') => self.paused = !self.paused,
+            KeyCode::Char('/') => self.input = Some(self.filter.text()),
+            KeyCode::Up | KeyCode::Char('k') => self.move_by(-1),
+            KeyCode::Down | KeyCode::Char('j') => self.move_by(1),
+            KeyCode::PageUp => self.move_by(-10),
+            KeyCode::PageDown => self.move_by(10),
+            KeyCode::Home => self.move_by(-(KEEP_FRAMES as isize)),
+            _ => {}
+        }
+    }
+
+    fn move_by(&mut self, by: isize) {
+        let (at, len) = match self.focus {
+            Pane::Nodes => (&mut self.selected, self.nodes.len()),
+            Pane::Events => (&mut self.scroll[0], self.events.len()),
+            Pane::Frames => {
+                let len = self.frames.iter().filter(|f| self.filter.passes(f)).count();
+                (&mut self.scroll[1], len)
+            }
+        };
+        *at = at.saturating_add_signed(by).min(len.saturating_sub(1));
+    }
+}
+
+/// The short name of an NMT state.
+pub fn nmt_name(state: Option<NmtState>) -> &'static str {
+    match state {
+        None => "-",
+        Some(NmtState::Initialising) => "init",
+        Some(NmtState::PreOperational) => "pre-op",
+        Some(NmtState::Operational) => "operational",
+        Some(NmtState::Stopped) => "stopped",
+    }
+}
+
+/// The CiA 402 state of a statusword, in words.
+pub fn state_name(status: u16) -> &'static str {
+    match State::from_statusword(status) {
+        Some(State::NotReadyToSwitchOn) => "Not ready to switch on",
+        Some(State::SwitchOnDisabled) => "Switch on disabled",
+        Some(State::ReadyToSwitchOn) => "Ready to switch on",
+        Some(State::SwitchedOn) => "Switched on",
+        Some(State::OperationEnabled) => "Operation enabled",
+        Some(State::QuickStopActive) => "Quick stop active",
+        Some(State::FaultReactionActive) => "Fault reaction active",
+        Some(State::Fault) => "Fault",
+        None => "?",
+    }
+}
+
+/// The short name of a mode of operation (6060h/6061h).
+pub fn mode_name(mode: i8) -> String {
+    match mode {
+        1 => "PP".into(),
+        2 => "VL".into(),
+        3 => "PV".into(),
+        4 => "PT".into(),
+        6 => "HM".into(),
+        7 => "IP".into(),
+        8 => "CSP".into(),
+        9 => "CSV".into(),
+        10 => "CST".into(),
+        m => m.to_string(),
+    }
+}
+
+/// The CiA 402 objects a TPDO of `device` carries, into `row`.
+fn drive_fields(row: &mut NodeRow, device: &Device, node: u8, id: u32, data: &[u8]) {
+    let Some(drive) = &mut row.drive else { return };
+    let pdos = device.pdos(node);
+    let Some(pdo) = pdos.iter().find(|p| p.cob_id == id) else { return };
+    let mut bit = 0usize;
+    for f in &pdo.fields {
+        let bits = usize::from(f.bits);
+        if bits == 0 || bits > 64 || bit + bits > data.len() * 8 {
+            break;
+        }
+        let mut v: u64 = 0;
+        for i in 0..bits {
+            let b = bit + i;
+            v |= u64::from(data[b / 8] >> (b % 8) & 1) << i;
+        }
+        bit += bits;
+        // Signed, from its width.
+        let signed = if bits < 64 && v >> (bits - 1) & 1 == 1 { (v | !0u64 << bits) as i64 } else { v as i64 };
+        match (f.index, f.sub) {
+            (0x6041, 0) => drive.status = Some(v as u16),
+            (0x6061, 0) => drive.mode = Some(signed as i8),
+            (0x6064, 0) => drive.position = Some(signed),
+            (0x606C, 0) => drive.velocity = Some(signed),
+            _ => {}
+        }
+    }
+}
