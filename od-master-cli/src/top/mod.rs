@@ -6,9 +6,9 @@
 //! (20 Hz), never once a frame, so a busy bus costs the decoding and not the drawing.
 
 pub mod model;
-pub mod view;
 #[cfg(test)]
 mod tests;
+pub mod view;
 
 use std::collections::BTreeMap;
 use std::time::Duration;
@@ -27,17 +27,27 @@ use model::Model;
 /// Redraws a second.
 pub const HZ: u64 = 20;
 
-/// The master's events and frames, taken into a model.
+/// An answer to a poll: node, index, the value (`None`: the read failed), or the end of the
+/// node's poll.
+enum Polled {
+    Value(u8, u16, u8, Option<Vec<u8>>),
+    Done(u8),
+}
+
+/// The master's events and frames, and the answers of the polls, taken into a model.
 pub struct Feed {
     events: broadcast::Receiver<Event>,
     frames: broadcast::Receiver<od_bus::CanFrame>,
+    polled_tx: mpsc::UnboundedSender<Polled>,
+    polled: mpsc::UnboundedReceiver<Polled>,
     start: Instant,
 }
 
 impl Feed {
     /// Subscribes to `bus` from now on; times are counted from now.
     pub fn new(bus: &Bus) -> Self {
-        Self { events: bus.events(), frames: bus.frames(), start: Instant::now() }
+        let (polled_tx, polled) = mpsc::unbounded_channel();
+        Self { events: bus.events(), frames: bus.frames(), polled_tx, polled, start: Instant::now() }
     }
 
     /// The time since the feed started.
@@ -62,6 +72,29 @@ impl Feed {
                 Err(TryRecvError::Lagged(n)) => model.dropped += n,
                 Err(_) => break,
             }
+        }
+        while let Ok(p) = self.polled.try_recv() {
+            match p {
+                Polled::Value(node, index, sub, bytes) => model.on_polled(node, index, sub, bytes.as_deref()),
+                Polled::Done(node) => model.poll_done(node, devices),
+            }
+        }
+    }
+
+    /// Starts the reads the model asks for, each node's in a task of its own (at most one a
+    /// node, each read given 300 ms): the view never waits for them.
+    pub fn poll(&self, bus: &Bus, model: &mut Model, devices: &BTreeMap<u8, Device>) {
+        for p in model.polls(self.now(), devices) {
+            let Ok(node) = bus.node(p.node) else { continue };
+            let node = node.with_timeout(Duration::from_millis(300)).with_retries(0);
+            let tx = self.polled_tx.clone();
+            tokio::spawn(async move {
+                for (index, sub) in p.objects {
+                    let value = node.read_bytes(index, sub).await.ok();
+                    let _ = tx.send(Polled::Value(p.node, index, sub, value));
+                }
+                let _ = tx.send(Polled::Done(p.node));
+            });
         }
     }
 
@@ -92,6 +125,7 @@ pub async fn run_loop<B: Backend>(
             _ = tick.tick() => {
                 feed.drain(model, devices);
                 feed.watch(bus, model).await;
+                feed.poll(bus, model, devices);
                 let now = feed.now();
                 terminal.draw(|f| view::draw(f, model, now)).map_err(|e| format!("cannot draw: {e}"))?;
             }

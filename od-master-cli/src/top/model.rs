@@ -9,6 +9,8 @@ use od_master::{Event, NmtState, NodeEvent, State};
 
 use crate::cli::decode::{decode, emcy_class};
 use crate::cli::device::Device;
+use crate::cli::units;
+use od_sidecar::{Dimension, ObjRef};
 
 /// The most events and frames kept (older ones are dropped; memory stays bounded).
 pub const KEEP_EVENTS: usize = 1000;
@@ -48,6 +50,23 @@ pub struct Drive {
     pub position: Option<i64>,
     /// Velocity actual value (606Ch), raw.
     pub velocity: Option<i64>,
+    /// The objects above that a TPDO carries (the others are polled).
+    pub in_tpdo: Vec<u16>,
+}
+
+/// The CiA 402 objects the nodes pane shows: statusword, mode display, position, velocity.
+pub const DRIVE_OBJECTS: [u16; 4] = [0x6041, 0x6061, 0x6064, 0x606C];
+
+/// How often the drive objects no TPDO carries are read.
+pub const POLL: Duration = Duration::from_millis(200);
+
+/// Objects to read from a node by SDO, and why.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Poll {
+    /// The node.
+    pub node: u8,
+    /// The objects (index, sub-index).
+    pub objects: Vec<(u16, u8)>,
 }
 
 /// A node heard from.
@@ -69,6 +88,16 @@ pub struct NodeRow {
     pub emcy: Option<LastEmcy>,
     /// For a CiA 402 device.
     pub drive: Option<Drive>,
+    /// A poll of this node is under way.
+    pub polling: bool,
+    /// When it was last polled.
+    pub polled: Option<Duration>,
+    /// Its name (1008h) was asked for.
+    pub name_asked: bool,
+    /// The values of the objects its sidecar's units depend on, read once (None: not asked).
+    pub unit_values: Option<Vec<((u16, u8), i64)>>,
+    /// Position and velocity in physical units: each a symbol and physical per raw.
+    pub units: [Option<(&'static str, f64)>; 2],
 }
 
 /// How a node's heartbeat is doing.
@@ -88,7 +117,22 @@ impl NodeRow {
     fn new(id: u8, device: Option<&Device>) -> Self {
         let name = device.and_then(|d| d.model.device_info.product_name.clone());
         let drive = device.filter(|d| d.model.entry(0x6041, 0).is_some()).map(|_| Drive::default());
-        Self { id, name, nmt: None, heard: None, period: None, lost: false, emcy: None, drive }
+        let name_asked = name.is_some();
+        Self {
+            id,
+            name,
+            nmt: None,
+            heard: None,
+            period: None,
+            lost: false,
+            emcy: None,
+            drive,
+            polling: false,
+            polled: None,
+            name_asked,
+            unit_values: None,
+            units: [None, None],
+        }
     }
 
     /// Its heartbeat's health at `now`, and the age of its last heartbeat.
@@ -98,7 +142,7 @@ impl NodeRow {
         let health = match self.period {
             _ if self.lost => Health::Lost,
             Some(p) if age > p * 3 => Health::Lost,
-            Some(p) if age > p * 3 / 2 => Health::Late,
+            Some(p) if age > p * 6 / 5 => Health::Late,
             _ => Health::Alive,
         };
         (health, Some(age))
@@ -158,20 +202,8 @@ impl Filter {
     }
 }
 
-const KINDS: [&str; 12] = [
-    "nmt",
-    "sync",
-    "time",
-    "emcy",
-    "pdo",
-    "sdo-request",
-    "sdo-response",
-    "heartbeat",
-    "guard",
-    "lss",
-    "other",
-    "sdo",
-];
+const KINDS: [&str; 12] =
+    ["nmt", "sync", "time", "emcy", "pdo", "sdo-request", "sdo-response", "heartbeat", "guard", "lss", "other", "sdo"];
 
 /// Everything `top` shows.
 #[derive(Debug)]
@@ -257,11 +289,11 @@ impl Model {
                 }
                 NodeEvent::FirstSeen { node, state } => {
                     self.node(node, devices);
-                    self.log(at, format!("node {node}: first heartbeat, {}", nmt_name(Some(state))));
+                    self.log(at, format!("node {node}: first heartbeat, {}", nmt_long(state)));
                 }
                 NodeEvent::StateChanged { node, from, to } => {
                     self.node(node, devices).nmt = Some(to);
-                    self.log(at, format!("node {node}: {} -> {}", nmt_name(Some(from)), nmt_name(Some(to))));
+                    self.log(at, format!("node {node}: {} -> {}", nmt_long(from), nmt_long(to)));
                 }
                 NodeEvent::Lost { node } => {
                     self.node(node, devices).lost = true;
@@ -271,7 +303,7 @@ impl Model {
                     let row = self.node(node, devices);
                     row.lost = false;
                     row.nmt = Some(state);
-                    self.log(at, format!("node {node}: recovered, {}", nmt_name(Some(state))));
+                    self.log(at, format!("node {node}: recovered, {}", nmt_long(state)));
                 }
                 NodeEvent::NeverSeen { node } => {
                     self.node(node, devices).lost = true;
@@ -312,7 +344,7 @@ impl Model {
                         let first = row.period.is_none();
                         row.period = Some(at.saturating_sub(last));
                         if first && !row.period.is_some_and(|p| p.is_zero()) {
-                            self.watch.push((node, at.saturating_sub(last) * 3 / 2));
+                            self.watch.push((node, at.saturating_sub(last) * 2));
                         }
                     }
                     let row = self.node(node, devices);
@@ -333,6 +365,105 @@ impl Model {
         if !self.paused {
             self.frames.push_front(FrameLine { at, kind: d.kind, node: d.node, text: d.text });
             self.frames.truncate(KEEP_FRAMES);
+        }
+    }
+
+    /// The reads due at `now`: each node's name (1008h) once when no EDS gives it, and every
+    /// [`POLL`] the drive objects no TPDO carries; one poll a node at a time, none for a node
+    /// lost or never heard by heartbeat.
+    pub fn polls(&mut self, now: Duration, devices: &BTreeMap<u8, Device>) -> Vec<Poll> {
+        let mut out = Vec::new();
+        for row in self.nodes.values_mut() {
+            if row.polling || row.lost {
+                continue;
+            }
+            let mut objects = Vec::new();
+            if !row.name_asked {
+                row.name_asked = true;
+                objects.push((0x1008, 0));
+            }
+            if row.unit_values.is_none()
+                && row.drive.is_some()
+                && let Some(sidecar) = devices.get(&row.id).and_then(|d| d.sidecar.as_ref())
+            {
+                row.unit_values = Some(Vec::new());
+                objects.extend(units::objects(sidecar).iter().map(|o| (o.index, o.sub_or_zero())));
+            }
+            if let Some(d) = &row.drive
+                && row.heard.is_some()
+                && row.polled.is_none_or(|t| now.saturating_sub(t) >= POLL)
+            {
+                row.polled = Some(now);
+                objects.extend(DRIVE_OBJECTS.iter().filter(|i| !d.in_tpdo.contains(i)).map(|&i| (i, 0)));
+            }
+            if !objects.is_empty() {
+                row.polling = true;
+                out.push(Poll { node: row.id, objects });
+            }
+        }
+        out
+    }
+
+    /// The answer of a read [`polls`](Self::polls) asked for (`None`: it failed, said among
+    /// the events once for the name).
+    pub fn on_polled(&mut self, node: u8, index: u16, sub: u8, bytes: Option<&[u8]>) {
+        let Some(row) = self.nodes.get_mut(&node) else { return };
+        let Some(bytes) = bytes else { return };
+        let mut le = [0u8; 8];
+        let n = bytes.len().min(8);
+        le[..n].copy_from_slice(&bytes[..n]);
+        let int = |width: usize| {
+            let v = u64::from_le_bytes(le);
+            let bits = 8 * width.clamp(1, 8) as u32;
+            if bits < 64 && v >> (bits - 1) & 1 == 1 { (v | !0u64 << bits) as i64 } else { v as i64 }
+        };
+        if let Some(values) = &mut row.unit_values
+            && !DRIVE_OBJECTS.contains(&index)
+            && index != 0x1008
+        {
+            values.push(((index, sub), int(bytes.len())));
+            return;
+        }
+        match (index, &mut row.drive) {
+            (0x1008, _) => {
+                let text = String::from_utf8_lossy(bytes).trim_end_matches('\0').trim().to_owned();
+                if !text.is_empty() {
+                    row.name = Some(text);
+                }
+            }
+            (0x6041, Some(d)) => d.status = Some(int(2) as u16),
+            (0x6061, Some(d)) => d.mode = Some(int(1) as i8),
+            (0x6064, Some(d)) => d.position = Some(int(4)),
+            (0x606C, Some(d)) => d.velocity = Some(int(4)),
+            _ => {}
+        }
+    }
+
+    /// A poll of `node` is over: its units are worked out once their objects are read.
+    pub fn poll_done(&mut self, node: u8, devices: &BTreeMap<u8, Device>) {
+        let Some(row) = self.nodes.get_mut(&node) else { return };
+        row.polling = false;
+        let (Some(values), Some(sidecar)) = (&row.unit_values, devices.get(&node).and_then(|d| d.sidecar.as_ref()))
+        else {
+            return;
+        };
+        if row.units != [None, None] {
+            return;
+        }
+        let values: BTreeMap<ObjRef, i64> = units::objects(sidecar)
+            .into_iter()
+            .filter_map(|o| values.iter().find(|(k, _)| *k == (o.index, o.sub_or_zero())).map(|(_, v)| (o, *v)))
+            .collect();
+        let Some(system) = sidecar.active_unit_system(|o| values.get(&o).copied()) else { return };
+        for (slot, dim) in [Dimension::Position, Dimension::Velocity].into_iter().enumerate() {
+            let Some(spec) = system.units.get(&dim) else { continue };
+            let symbol = spec.unit.symbol();
+            // Physical per raw, from the raw value of 1000 units.
+            if let Ok(raw) = units::to_raw("1000", symbol, dim, sidecar, &values)
+                && raw != 0
+            {
+                row.units[slot] = Some((symbol, 1000.0 / f64::from(raw)));
+            }
         }
     }
 
@@ -420,8 +551,18 @@ pub fn nmt_name(state: Option<NmtState>) -> &'static str {
         None => "-",
         Some(NmtState::Initialising) => "init",
         Some(NmtState::PreOperational) => "pre-op",
-        Some(NmtState::Operational) => "operational",
+        Some(NmtState::Operational) => "oper",
         Some(NmtState::Stopped) => "stopped",
+    }
+}
+
+/// An NMT state in words.
+pub fn nmt_long(state: NmtState) -> &'static str {
+    match state {
+        NmtState::Initialising => "initialising",
+        NmtState::PreOperational => "pre-operational",
+        NmtState::Operational => "operational",
+        NmtState::Stopped => "stopped",
     }
 }
 
@@ -475,6 +616,9 @@ fn drive_fields(row: &mut NodeRow, device: &Device, node: u8, id: u32, data: &[u
         bit += bits;
         // Signed, from its width.
         let signed = if bits < 64 && v >> (bits - 1) & 1 == 1 { (v | !0u64 << bits) as i64 } else { v as i64 };
+        if f.sub == 0 && DRIVE_OBJECTS.contains(&f.index) && !drive.in_tpdo.contains(&f.index) {
+            drive.in_tpdo.push(f.index);
+        }
         match (f.index, f.sub) {
             (0x6041, 0) => drive.status = Some(v as u16),
             (0x6061, 0) => drive.mode = Some(signed as i8),

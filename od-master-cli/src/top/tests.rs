@@ -54,6 +54,7 @@ impl Rig {
             tokio::time::sleep(Duration::from_millis(50).min(end - tokio::time::Instant::now())).await;
             self.feed.drain(&mut self.model, &self.devices);
             self.feed.watch(&self.bus, &mut self.model).await;
+            self.feed.poll(&self.bus, &mut self.model, &self.devices);
         }
     }
 
@@ -97,8 +98,11 @@ async fn top_screens_of_drives_booting_moving_failing() {
     // The DRVI enabled and turning at a constant velocity.
     let axis = od_master::Axis::new(r.bus.node(2).unwrap());
     axis.enable().await.unwrap();
-    axis.run_velocity(500, None, None).await.unwrap();
-    r.pass(300).await;
+    axis.run_velocity(5_000, Some(50_000), Some(50_000)).await.unwrap();
+    r.pass(500).await;
+    let d = r.model.nodes[&2].drive.clone().unwrap();
+    assert_eq!(d.velocity, Some(5_000), "{d:?}");
+    assert!(d.position.is_some_and(|p| p > 1_000), "{d:?}");
     insta::assert_snapshot!("3_moving", r.screen());
 
     // The DRCS refuses to move before homing: EMCY FF13h with its sidecar's text.

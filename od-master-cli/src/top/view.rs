@@ -77,7 +77,12 @@ fn draw_nodes(f: &mut Frame, m: &Model, now: Duration, area: Rect) {
         let state = d.status.map_or("-", short_state);
         let state_style = if state == "FAULT" { Style::new().fg(Color::Red) } else { Style::new() };
         let emcy = n.emcy.as_ref().map_or(String::new(), |e| format!("{:04X}h {}", e.code, e.text));
-        let opt = |v: Option<i64>| v.map_or("-".to_owned(), |v| v.to_string());
+        // In the sidecar's units when it has them, else raw.
+        let opt = |v: Option<i64>, unit: Option<(&str, f64)>| match (v, unit) {
+            (None, _) => "-".to_owned(),
+            (Some(v), None) => v.to_string(),
+            (Some(v), Some((symbol, per_raw))) => physical(v as f64 * per_raw, symbol),
+        };
         Row::new([
             Cell::new(format!("{:>3}", n.id)),
             Cell::new(n.name.clone().unwrap_or_else(|| "-".into())),
@@ -85,15 +90,15 @@ fn draw_nodes(f: &mut Frame, m: &Model, now: Duration, area: Rect) {
             Cell::new(hb).style(hb_style),
             Cell::new(state).style(state_style),
             Cell::new(d.mode.map_or("-".into(), mode_name)),
-            Cell::new(format!("{:>9}", opt(d.position))),
-            Cell::new(format!("{:>9}", opt(d.velocity))),
+            Cell::new(format!("{:>9}", opt(d.position, n.units[0]))),
+            Cell::new(format!("{:>9}", opt(d.velocity, n.units[1]))),
             Cell::new(emcy).style(Style::new().fg(Color::Red)),
         ])
     });
     let widths = [
         Constraint::Length(3),
-        Constraint::Length(10),
-        Constraint::Length(6),
+        Constraint::Length(9),
+        Constraint::Length(7),
         Constraint::Length(10),
         Constraint::Length(14),
         Constraint::Length(4),
@@ -101,8 +106,8 @@ fn draw_nodes(f: &mut Frame, m: &Model, now: Duration, area: Rect) {
         Constraint::Length(9),
         Constraint::Fill(1),
     ];
-    let [table_area, detail_area] = Layout::vertical([Constraint::Fill(1), Constraint::Length(1)])
-        .areas(block(String::new(), false).inner(area));
+    let [table_area, detail_area] =
+        Layout::vertical([Constraint::Fill(1), Constraint::Length(1)]).areas(block(String::new(), false).inner(area));
     f.render_widget(block(" Nodes ".into(), m.focus == Pane::Nodes), area);
     let table = Table::new(rows, widths)
         .header(header)
@@ -117,12 +122,24 @@ fn draw_nodes(f: &mut Frame, m: &Model, now: Duration, area: Rect) {
             parts.push(format!("{} ({s:04X}h)", state_name(s)));
         }
         match &n.emcy {
-            Some(e) => parts.push(format!("EMCY {:04X}h {} {} ago", e.code, e.text, age(now.saturating_sub(e.at)))),
+            Some(e) => parts.push(format!("EMCY {:04X}h {} ({})", e.code, e.text, age(now.saturating_sub(e.at)))),
             None => parts.push("no EMCY".into()),
         }
         parts.join(", ")
     });
     f.render_widget(Paragraph::new(detail).style(Style::new().fg(Color::DarkGray)), detail_area);
+}
+
+/// A physical value in at most 9 characters where it can: fewer decimals as it grows.
+fn physical(v: f64, symbol: &str) -> String {
+    let room = 9usize.saturating_sub(symbol.len());
+    for decimals in [2, 1, 0] {
+        let s = format!("{v:.decimals$}");
+        if s.len() <= room || decimals == 0 {
+            return format!("{s}{symbol}");
+        }
+    }
+    format!("{v:.0}{symbol}")
 }
 
 /// A CiA 402 state in at most 14 characters.
