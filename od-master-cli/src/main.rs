@@ -120,8 +120,18 @@ enum Cmd {
         sequential: bool,
     },
     /// A live full-screen view of the network: its nodes (NMT state, heartbeat, last EMCY,
-    /// CiA 402 state, mode, position, velocity), its events and its frames in words. q quits.
-    Top,
+    /// CiA 402 state, mode, position, velocity), its events and its frames in words, and an
+    /// object browser (o). q quits.
+    Top {
+        /// Let the object browser write (each write confirmed); read-only without it.
+        #[arg(long)]
+        allow_writes: bool,
+        /// How often a drive's statusword, mode, position and velocity are read by SDO when no
+        /// TPDO carries them, in milliseconds; 0: never (leaves the SDO channels to another
+        /// master).
+        #[arg(long, default_value_t = 200, value_name = "MS")]
+        poll_ms: u64,
+    },
     /// Drives a CiA 402 axis.
     Axis {
         /// Node id (1..=127).
@@ -338,7 +348,10 @@ async fn run(args: Args) -> Result<(), Fail> {
         }
         Cmd::Scan { last } => scan(&bus, last.clamp(1, 127), args.json, args.timeout).await?,
         Cmd::Monitor { count, duration } => monitor(&bus, &devices, count, duration, args.json).await?,
-        Cmd::Top => top::run(&bus, &addr, &devices.by_node).await.map_err(|e| Fail(1, e))?,
+        Cmd::Top { allow_writes, poll_ms } => {
+            let poll = (poll_ms > 0).then(|| Duration::from_millis(poll_ms.max(20)));
+            top::run(&bus, &addr, &devices.by_node, allow_writes, poll).await.map_err(|e| Fail(1, e))?
+        }
         Cmd::Axis { node, action } => {
             let node = node_id(&node.to_string())?;
             let axis = Axis::new(bus.node(node).map_err(fail)?);

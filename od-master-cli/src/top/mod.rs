@@ -22,7 +22,8 @@ use tokio::sync::{broadcast, mpsc};
 use tokio::time::Instant;
 
 use crate::cli::device::Device;
-use model::Model;
+use crate::cli::value::{hex, show};
+use model::{Model, Request};
 
 /// Redraws a second.
 pub const HZ: u64 = 20;
@@ -32,6 +33,7 @@ pub const HZ: u64 = 20;
 enum Polled {
     Value(u8, u16, u8, Option<Vec<u8>>),
     Done(u8),
+    Answer(String),
 }
 
 /// The master's events and frames, and the answers of the polls, taken into a model.
@@ -77,6 +79,7 @@ impl Feed {
             match p {
                 Polled::Value(node, index, sub, bytes) => model.on_polled(node, index, sub, bytes.as_deref()),
                 Polled::Done(node) => model.poll_done(node, devices),
+                Polled::Answer(text) => model.on_answer(text),
             }
         }
     }
@@ -84,6 +87,32 @@ impl Feed {
     /// Starts the reads the model asks for, each node's in a task of its own (at most one a
     /// node, each read given 300 ms): the view never waits for them.
     pub fn poll(&self, bus: &Bus, model: &mut Model, devices: &BTreeMap<u8, Device>) {
+        for r in std::mem::take(&mut model.requests) {
+            let tx = self.polled_tx.clone();
+            let bus = bus.clone();
+            tokio::spawn(async move {
+                let answer = match r {
+                    Request::Read { node, index, sub, data_type } => match bus.node(node) {
+                        Ok(n) => match n.read_bytes(index, sub).await {
+                            Ok(bytes) => {
+                                let shown = show(&bytes, Some(data_type), index, sub);
+                                format!("{index:04X}h:{sub} = {}", shown.text())
+                            }
+                            Err(e) => format!("{index:04X}h:{sub}: {e}"),
+                        },
+                        Err(e) => e.to_string(),
+                    },
+                    Request::Write { node, index, sub, bytes } => match bus.node(node) {
+                        Ok(n) => match n.write_bytes(index, sub, &bytes).await {
+                            Ok(()) => format!("{index:04X}h:{sub} written: {}", hex(&bytes)),
+                            Err(e) => format!("{index:04X}h:{sub}: {e}"),
+                        },
+                        Err(e) => e.to_string(),
+                    },
+                };
+                let _ = tx.send(Polled::Answer(answer));
+            });
+        }
         for p in model.polls(self.now(), devices) {
             let Ok(node) = bus.node(p.node) else { continue };
             let node = node.with_timeout(Duration::from_millis(300)).with_retries(0);
@@ -130,7 +159,7 @@ pub async fn run_loop<B: Backend>(
                 terminal.draw(|f| view::draw(f, model, now)).map_err(|e| format!("cannot draw: {e}"))?;
             }
             key = keys.recv() => match key {
-                Some(k) => model.on_key(k),
+                Some(k) => model.on_key(k, devices),
                 None => return Ok(()),
             },
         }
@@ -142,7 +171,13 @@ pub async fn run_loop<B: Backend>(
 
 /// `od-master top` in this terminal: raw mode and the alternate screen, restored on the way
 /// out, on Ctrl-C (a key in raw mode) and on a panic (ratatui's hook restores, then reports).
-pub async fn run(bus: &Bus, addr: &str, devices: &BTreeMap<u8, Device>) -> Result<(), String> {
+pub async fn run(
+    bus: &Bus,
+    addr: &str,
+    devices: &BTreeMap<u8, Device>,
+    allow_writes: bool,
+    poll: Option<Duration>,
+) -> Result<(), String> {
     use std::io::IsTerminal;
     if !std::io::stdout().is_terminal() {
         return Err("top needs a terminal: run it in one (for a log, use `monitor`)".into());
@@ -161,6 +196,8 @@ pub async fn run(bus: &Bus, addr: &str, devices: &BTreeMap<u8, Device>) -> Resul
     });
     let mut terminal = ratatui::try_init().map_err(|e| format!("cannot set up the terminal: {e}"))?;
     let mut model = Model::new(addr);
+    model.allow_writes = allow_writes;
+    model.poll = poll;
     let mut feed = Feed::new(bus);
     let result = run_loop(&mut terminal, bus, devices, &mut model, &mut feed, &mut keys).await;
     ratatui::try_restore().map_err(|e| format!("cannot restore the terminal: {e}"))?;

@@ -10,6 +10,8 @@ use od_master::{Event, NmtState, NodeEvent, State};
 use crate::cli::decode::{decode, emcy_class};
 use crate::cli::device::Device;
 use crate::cli::units;
+use crate::cli::value::{encode, hex};
+use eds::DataType;
 use od_sidecar::{Dimension, ObjRef};
 
 /// The most events and frames kept (older ones are dropped; memory stays bounded).
@@ -57,7 +59,7 @@ pub struct Drive {
 /// The CiA 402 objects the nodes pane shows: statusword, mode display, position, velocity.
 pub const DRIVE_OBJECTS: [u16; 4] = [0x6041, 0x6061, 0x6064, 0x606C];
 
-/// How often the drive objects no TPDO carries are read.
+/// How often the drive objects no TPDO carries are read, by default.
 pub const POLL: Duration = Duration::from_millis(200);
 
 /// Objects to read from a node by SDO, and why.
@@ -205,6 +207,90 @@ impl Filter {
 const KINDS: [&str; 12] =
     ["nmt", "sync", "time", "emcy", "pdo", "sdo-request", "sdo-response", "heartbeat", "guard", "lss", "other", "sdo"];
 
+/// An entry of the object browser.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BrowserEntry {
+    /// Index.
+    pub index: u16,
+    /// Sub-index.
+    pub sub: u8,
+    /// Its name in the EDS (the object's, then the entry's for a sub-index).
+    pub name: String,
+    /// Its type.
+    pub data_type: DataType,
+    /// `ro`, `rw`, ...
+    pub access: String,
+}
+
+impl BrowserEntry {
+    fn matches(&self, query: &str) -> bool {
+        let q = query.trim().to_ascii_lowercase();
+        let hex = q.trim_start_matches("0x").trim_end_matches('h');
+        q.is_empty()
+            || self.name.to_ascii_lowercase().contains(&q)
+            || (!hex.is_empty() && format!("{:04x}", self.index).starts_with(hex))
+    }
+}
+
+/// The object browser of one node: its dictionary from the EDS, searched, read and written.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Browser {
+    /// The node.
+    pub node: u8,
+    /// Every entry of its EDS.
+    pub entries: Vec<BrowserEntry>,
+    /// The search: a name's part, or an index (`6041`, `0x60`, `1018h`).
+    pub query: String,
+    /// The search is being typed.
+    pub searching: bool,
+    /// The selected entry among those the search passes.
+    pub selected: usize,
+    /// The last read or write: what came back, in words.
+    pub result: Option<String>,
+    /// A value being typed for a write.
+    pub edit: Option<String>,
+    /// A write waiting for `y`: index, sub-index, bytes, and the question.
+    pub confirm: Option<(u16, u8, Vec<u8>, String)>,
+}
+
+impl Browser {
+    /// The entries the search passes.
+    pub fn shown(&self) -> impl Iterator<Item = &BrowserEntry> {
+        self.entries.iter().filter(|e| e.matches(&self.query))
+    }
+
+    fn current(&self) -> Option<&BrowserEntry> {
+        self.shown().nth(self.selected)
+    }
+}
+
+/// An SDO transfer the browser asks for.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Request {
+    /// Read an entry (shown by its type).
+    Read {
+        /// Node.
+        node: u8,
+        /// Index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+        /// Its type.
+        data_type: DataType,
+    },
+    /// Write these bytes (confirmed, and only with `--allow-writes`).
+    Write {
+        /// Node.
+        node: u8,
+        /// Index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+        /// The value's bytes.
+        bytes: Vec<u8>,
+    },
+}
+
 /// Everything `top` shows.
 #[derive(Debug)]
 pub struct Model {
@@ -239,6 +325,15 @@ pub struct Model {
     /// Heartbeat consumer times to ask the master for (node, timeout): a node's period, once
     /// known, so that the master reports it lost and recovered.
     pub watch: Vec<(u8, Duration)>,
+    /// The object browser, when open.
+    pub browser: Option<Browser>,
+    /// Reads and writes the browser asks for.
+    pub requests: Vec<Request>,
+    /// `--allow-writes`: without it the browser only reads.
+    pub allow_writes: bool,
+    /// How often the drive objects no TPDO carries are read (`None`: never; SDO polling shares
+    /// the nodes' SDO channel with any other master on the bus).
+    pub poll: Option<Duration>,
 }
 
 impl Model {
@@ -260,6 +355,10 @@ impl Model {
             scroll: [0, 0],
             quit: false,
             watch: Vec::new(),
+            browser: None,
+            requests: Vec::new(),
+            allow_writes: false,
+            poll: Some(POLL),
         }
     }
 
@@ -373,6 +472,7 @@ impl Model {
     /// lost or never heard by heartbeat.
     pub fn polls(&mut self, now: Duration, devices: &BTreeMap<u8, Device>) -> Vec<Poll> {
         let mut out = Vec::new();
+        let Some(period) = self.poll else { return out };
         for row in self.nodes.values_mut() {
             if row.polling || row.lost {
                 continue;
@@ -391,7 +491,7 @@ impl Model {
             }
             if let Some(d) = &row.drive
                 && row.heard.is_some()
-                && row.polled.is_none_or(|t| now.saturating_sub(t) >= POLL)
+                && row.polled.is_none_or(|t| now.saturating_sub(t) >= period)
             {
                 row.polled = Some(now);
                 objects.extend(DRIVE_OBJECTS.iter().filter(|i| !d.in_tpdo.contains(i)).map(|&i| (i, 0)));
@@ -477,10 +577,145 @@ impl Model {
         self.nodes.values().nth(self.selected)
     }
 
+    /// The answer to a browser's request, in words.
+    pub fn on_answer(&mut self, text: String) {
+        if let Some(b) = &mut self.browser {
+            b.result = Some(text);
+        }
+    }
+
+    fn open_browser(&mut self, devices: &BTreeMap<u8, Device>) {
+        let Some(node) = self.selected_node().map(|n| n.id) else {
+            self.status = Some("no node selected".into());
+            return;
+        };
+        let Some(device) = devices.get(&node) else {
+            self.status = Some(format!("node {node} has no EDS: give --eds {node}=FILE to browse its objects"));
+            return;
+        };
+        let entries = device
+            .model
+            .entries()
+            .map(|(o, e)| {
+                let name = if o.subs.len() > 1 && e.sub.0 != 0 {
+                    format!("{}: {}", o.name.as_str(), e.name.as_str())
+                } else {
+                    o.name.as_str().to_owned()
+                };
+                BrowserEntry {
+                    index: o.index.0,
+                    sub: e.sub.0,
+                    name,
+                    data_type: e.data_type,
+                    access: format!("{:?}", e.access).to_ascii_lowercase(),
+                }
+            })
+            .collect();
+        self.browser = Some(Browser {
+            node,
+            entries,
+            query: String::new(),
+            searching: false,
+            selected: 0,
+            result: None,
+            edit: None,
+            confirm: None,
+        });
+    }
+
+    /// A key in the browser.
+    fn browser_key(&mut self, key: KeyEvent) {
+        let allow_writes = self.allow_writes;
+        let Some(b) = &mut self.browser else { return };
+        if let Some((index, sub, bytes, _)) = b.confirm.take() {
+            if key.code == KeyCode::Char('y') {
+                self.requests.push(Request::Write { node: b.node, index, sub, bytes });
+                b.result = Some(format!("writing {index:04X}h:{sub}..."));
+            } else {
+                b.result = Some("write cancelled".into());
+            }
+            return;
+        }
+        if let Some(edit) = &mut b.edit {
+            match key.code {
+                KeyCode::Esc => b.edit = None,
+                KeyCode::Backspace => {
+                    edit.pop();
+                }
+                KeyCode::Char(c) if edit.len() < 64 => edit.push(c),
+                KeyCode::Enter => {
+                    let text = b.edit.take().unwrap_or_default();
+                    let Some(e) = b.current().cloned() else { return };
+                    match encode(&text, e.data_type) {
+                        Ok(bytes) => {
+                            let question = format!(
+                                "write {text} ({}) to node {} {:04X}h:{} {}? y/n",
+                                hex(&bytes),
+                                b.node,
+                                e.index,
+                                e.sub,
+                                e.name
+                            );
+                            b.confirm = Some((e.index, e.sub, bytes, question));
+                        }
+                        Err(err) => b.result = Some(err.to_string()),
+                    }
+                }
+                _ => {}
+            }
+            return;
+        }
+        if b.searching {
+            match key.code {
+                KeyCode::Enter | KeyCode::Esc => b.searching = false,
+                KeyCode::Backspace => {
+                    b.query.pop();
+                    b.selected = 0;
+                }
+                KeyCode::Char(c) if b.query.len() < 40 => {
+                    b.query.push(c);
+                    b.selected = 0;
+                }
+                _ => {}
+            }
+            return;
+        }
+        let len = b.shown().count();
+        match key.code {
+            KeyCode::Esc => self.browser = None,
+            KeyCode::Char('q') => self.quit = true,
+            KeyCode::Char('/') => b.searching = true,
+            KeyCode::Up => b.selected = b.selected.saturating_sub(1),
+            KeyCode::Down => b.selected = (b.selected + 1).min(len.saturating_sub(1)),
+            KeyCode::PageUp => b.selected = b.selected.saturating_sub(10),
+            KeyCode::PageDown => b.selected = (b.selected + 10).min(len.saturating_sub(1)),
+            KeyCode::Enter => {
+                if let Some(e) = b.current() {
+                    let (index, sub, data_type) = (e.index, e.sub, e.data_type);
+                    self.requests.push(Request::Read { node: b.node, index, sub, data_type });
+                    b.result = Some(format!("reading {index:04X}h:{sub}..."));
+                }
+            }
+            KeyCode::Char('w') if !allow_writes => {
+                b.result = Some("read-only: start top with --allow-writes to write".into());
+            }
+            KeyCode::Char('w') => {
+                if b.current().is_some() {
+                    b.edit = Some(String::new());
+                }
+            }
+            _ => {}
+        }
+    }
+
     /// A key.
-    pub fn on_key(&mut self, key: KeyEvent) {
+    pub fn on_key(&mut self, key: KeyEvent, devices: &BTreeMap<u8, Device>) {
         if key.modifiers.contains(KeyModifiers::CONTROL) && key.code == KeyCode::Char('c') {
             self.quit = true;
+            return;
+        }
+        if self.browser.is_some() {
+            self.browser_key(key);
             return;
         }
         if let Some(input) = &mut self.input {
@@ -522,6 +757,8 @@ impl Model {
                 }
             }
             KeyCode::Char('p') => self.paused = !self.paused,
+            KeyCode::Char('o') => self.open_browser(devices),
+            KeyCode::Enter if self.focus == Pane::Nodes => self.open_browser(devices),
             KeyCode::Char('/') => self.input = Some(self.filter.text()),
             KeyCode::Up | KeyCode::Char('k') => self.move_by(-1),
             KeyCode::Down | KeyCode::Char('j') => self.move_by(1),

@@ -75,7 +75,7 @@ impl Rig {
     }
 
     fn key(&mut self, code: KeyCode) {
-        self.model.on_key(KeyEvent::new(code, KeyModifiers::NONE));
+        self.model.on_key(KeyEvent::new(code, KeyModifiers::NONE), &self.devices);
     }
 }
 
@@ -148,8 +148,60 @@ async fn top_screens_of_drives_booting_moving_failing() {
     assert_eq!(r.model.frames.len(), before, "paused: no new frames shown");
     insta::assert_snapshot!("7_frames_filtered_paused", r.screen());
 
-    r.model.on_key(KeyEvent::new(KeyCode::Char('c'), KeyModifiers::CONTROL));
+    r.model.on_key(KeyEvent::new(KeyCode::Char('c'), KeyModifiers::CONTROL), &r.devices);
     assert!(r.model.quit);
+}
+
+/// The object browser of the DRVI: searched by name and by index, a read shown typed, a write
+/// refused without --allow-writes, and with it asked for and confirmed.
+#[tokio::test(start_paused = true)]
+async fn top_object_browser_searches_reads_and_writes_only_when_allowed() {
+    let mut r = Rig::new();
+    r.bus.node(2).unwrap().write_idempotent(0x1017, 0, 100u16).await.unwrap();
+    r.pass(300).await;
+    r.key(KeyCode::Char('o'));
+    assert_eq!(r.model.browser.as_ref().map(|b| b.node), Some(2));
+    r.key(KeyCode::Char('/'));
+    for c in "heartbeat".chars() {
+        r.key(KeyCode::Char(c));
+    }
+    r.key(KeyCode::Enter);
+    r.key(KeyCode::Enter);
+    r.pass(100).await;
+    let b = r.model.browser.as_ref().unwrap();
+    assert_eq!(b.result.as_deref(), Some("1017h:0 = 100"), "{b:?}");
+    insta::assert_snapshot!("8_browser_read", r.screen());
+    r.key(KeyCode::Char('w'));
+    assert!(r.model.browser.as_ref().unwrap().result.as_deref().unwrap().contains("--allow-writes"));
+    // By index, then a write, confirmed.
+    r.model.allow_writes = true;
+    r.key(KeyCode::Char('/'));
+    for _ in 0..9 {
+        r.key(KeyCode::Backspace);
+    }
+    for c in "0x1017".chars() {
+        r.key(KeyCode::Char(c));
+    }
+    r.key(KeyCode::Enter);
+    r.key(KeyCode::Char('w'));
+    for c in "250".chars() {
+        r.key(KeyCode::Char(c));
+    }
+    r.key(KeyCode::Enter);
+    insta::assert_snapshot!("9_browser_confirm", r.screen());
+    r.key(KeyCode::Char('y'));
+    r.pass(100).await;
+    assert_eq!(r.model.browser.as_ref().unwrap().result.as_deref(), Some("1017h:0 written: fa00"));
+    assert_eq!(r.bus.node(2).unwrap().read::<u16>(0x1017, 0).await.unwrap(), 250);
+    // Anything but y cancels.
+    r.key(KeyCode::Char('w'));
+    r.key(KeyCode::Char('1'));
+    r.key(KeyCode::Enter);
+    r.key(KeyCode::Char('n'));
+    assert_eq!(r.model.browser.as_ref().unwrap().result.as_deref(), Some("write cancelled"));
+    assert!(r.model.requests.is_empty());
+    r.key(KeyCode::Esc);
+    assert!(r.model.browser.is_none());
 }
 
 #[test]
@@ -166,13 +218,13 @@ fn a_filter_names_a_node_a_kind_or_both_and_says_what_is_wrong() {
 fn a_bad_filter_is_said_and_not_applied() {
     let mut m = Model::new("mem://x");
     for c in "/pdo".chars() {
-        m.on_key(KeyEvent::new(KeyCode::Char(c), KeyModifiers::NONE));
+        m.on_key(KeyEvent::new(KeyCode::Char(c), KeyModifiers::NONE), &BTreeMap::new());
     }
-    m.on_key(KeyEvent::new(KeyCode::Enter, KeyModifiers::NONE));
+    m.on_key(KeyEvent::new(KeyCode::Enter, KeyModifiers::NONE), &BTreeMap::new());
     for c in "/xyz".chars() {
-        m.on_key(KeyEvent::new(KeyCode::Char(c), KeyModifiers::NONE));
+        m.on_key(KeyEvent::new(KeyCode::Char(c), KeyModifiers::NONE), &BTreeMap::new());
     }
-    m.on_key(KeyEvent::new(KeyCode::Enter, KeyModifiers::NONE));
+    m.on_key(KeyEvent::new(KeyCode::Enter, KeyModifiers::NONE), &BTreeMap::new());
     assert_eq!(m.filter.kind.as_deref(), Some("pdo"));
     assert!(m.status.as_deref().unwrap().contains("`pdoxyz`"), "{:?}", m.status);
 }

@@ -9,7 +9,7 @@ use ratatui::style::{Color, Modifier, Style};
 use ratatui::text::{Line, Span};
 use ratatui::widgets::{Block, Borders, Cell, List, ListItem, ListState, Paragraph, Row, Table, TableState};
 
-use super::model::{Health, Model, Pane, mode_name, nmt_name, state_name};
+use super::model::{Browser, Health, Model, Pane, mode_name, nmt_name, state_name};
 
 /// Draws the whole screen at `now` (the time since the view started).
 pub fn draw(f: &mut Frame, m: &Model, now: Duration) {
@@ -24,9 +24,56 @@ pub fn draw(f: &mut Frame, m: &Model, now: Duration) {
     .areas(f.area());
     draw_title(f, m, now, title);
     draw_nodes(f, m, now, nodes);
-    draw_events(f, m, events);
-    draw_frames(f, m, frames);
+    if let Some(b) = &m.browser {
+        draw_browser(f, b, events.union(frames));
+    } else {
+        draw_events(f, m, events);
+        draw_frames(f, m, frames);
+    }
     draw_keys(f, m, keys);
+}
+
+/// The object browser in place of the events and frames: the entries the search passes around
+/// the selected one, and the last answer (or the question before a write) at the bottom.
+fn draw_browser(f: &mut Frame, b: &Browser, area: Rect) {
+    let title = if b.searching || !b.query.is_empty() {
+        format!(" Objects of node {} search: {}{} ", b.node, b.query, if b.searching { "_" } else { "" })
+    } else {
+        format!(" Objects of node {} ", b.node)
+    };
+    let outer = block(title, true);
+    let inner = outer.inner(area);
+    f.render_widget(outer, area);
+    let [list_area, answer_area] = Layout::vertical([Constraint::Fill(1), Constraint::Length(1)]).areas(inner);
+    let rows = usize::from(list_area.height).max(1);
+    let first = b.selected.saturating_sub(rows - 1);
+    let items: Vec<ListItem> = b
+        .shown()
+        .enumerate()
+        .skip(first)
+        .take(rows)
+        .map(|(i, e)| {
+            let line = format!(
+                "{:04X}h:{:<3} {:<4} {:<12} {}",
+                e.index,
+                e.sub,
+                e.access,
+                format!("{:?}", e.data_type),
+                e.name
+            );
+            let style = if i == b.selected { Style::new().add_modifier(Modifier::REVERSED) } else { Style::new() };
+            ListItem::new(line).style(style)
+        })
+        .collect();
+    f.render_widget(List::new(items), list_area);
+    let answer = if let Some((_, _, _, q)) = &b.confirm {
+        Span::styled(q.clone(), Style::new().fg(Color::Yellow).add_modifier(Modifier::BOLD))
+    } else if let Some(edit) = &b.edit {
+        Span::styled(format!("value: {edit}_"), Style::new().add_modifier(Modifier::BOLD))
+    } else {
+        Span::raw(b.result.clone().unwrap_or_default())
+    };
+    f.render_widget(Paragraph::new(Line::from(answer)), answer_area);
 }
 
 /// `12.345` seconds since the view started.
@@ -197,8 +244,10 @@ fn draw_keys(f: &mut Frame, m: &Model, area: Rect) {
         ])
     } else if let Some(status) = &m.status {
         Line::from(Span::styled(status.clone(), Style::new().fg(Color::Red)))
+    } else if m.browser.is_some() {
+        Line::from(" Enter read  w write  / search  \u{2191}\u{2193} select  Esc back  q quit")
     } else {
-        Line::from(" q quit  Tab pane  \u{2191}\u{2193} select  p pause  / filter")
+        Line::from(" q quit  Tab pane  \u{2191}\u{2193} select  o objects  p pause  / filter")
     };
     f.render_widget(Paragraph::new(line), area);
 }
