@@ -77,7 +77,7 @@ impl Feed {
         }
         while let Ok(p) = self.polled.try_recv() {
             match p {
-                Polled::Value(node, index, sub, bytes) => model.on_polled(node, index, sub, bytes.as_deref()),
+                Polled::Value(node, index, sub, bytes) => model.on_polled(now, node, index, sub, bytes.as_deref()),
                 Polled::Done(node) => model.poll_done(node, devices),
                 Polled::Answer(text) => model.on_answer(text),
             }

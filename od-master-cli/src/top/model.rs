@@ -100,7 +100,23 @@ pub struct NodeRow {
     pub unit_values: Option<Vec<((u16, u8), i64)>>,
     /// Position and velocity in physical units: each a symbol and physical per raw.
     pub units: [Option<(&'static str, f64)>; 2],
+    /// The values its TPDOs carried and the polls read, over time, for the plots.
+    pub series: BTreeMap<(u16, u8), Series>,
 }
+
+/// A value over time: (seconds since the view started, raw value).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Series {
+    /// Its name.
+    pub label: String,
+    /// The newest [`KEEP_POINTS`] points.
+    pub points: VecDeque<(f64, f64)>,
+}
+
+/// The points a series keeps.
+pub const KEEP_POINTS: usize = 2000;
+/// The series a node keeps.
+pub const KEEP_SERIES: usize = 32;
 
 /// How a node's heartbeat is doing.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -134,6 +150,32 @@ impl NodeRow {
             name_asked,
             unit_values: None,
             units: [None, None],
+            series: BTreeMap::new(),
+        }
+    }
+
+    fn record(&mut self, index: u16, sub: u8, label: Option<String>, at: Duration, value: f64) {
+        if self.series.len() >= KEEP_SERIES && !self.series.contains_key(&(index, sub)) {
+            return;
+        }
+        let s = self.series.entry((index, sub)).or_default();
+        if let Some(label) = label {
+            s.label = label;
+        } else if s.label.is_empty() {
+            s.label = format!("{index:04X}h:{sub}");
+        }
+        s.points.push_back((at.as_secs_f64(), value));
+        if s.points.len() > KEEP_POINTS {
+            s.points.pop_front();
+        }
+    }
+
+    /// The unit of a series (position and velocity in the sidecar's), and physical per raw.
+    pub fn unit_of(&self, index: u16, sub: u8) -> Option<(&'static str, f64)> {
+        match (index, sub) {
+            (0x6064, 0) => self.units[0],
+            (0x606C, 0) => self.units[1],
+            _ => None,
         }
     }
 
@@ -327,6 +369,8 @@ pub struct Model {
     pub watch: Vec<(u8, Duration)>,
     /// The object browser, when open.
     pub browser: Option<Browser>,
+    /// The plot, when open: the node and its series shown (an index among its series).
+    pub plot: Option<(u8, usize)>,
     /// Reads and writes the browser asks for.
     pub requests: Vec<Request>,
     /// `--allow-writes`: without it the browser only reads.
@@ -356,6 +400,7 @@ impl Model {
             quit: false,
             watch: Vec::new(),
             browser: None,
+            plot: None,
             requests: Vec::new(),
             allow_writes: false,
             poll: Some(POLL),
@@ -457,7 +502,7 @@ impl Model {
                 }
             } else if d.kind == "pdo" {
                 if let Some(device) = devices.get(&node) {
-                    drive_fields(self.node(node, devices), device, node, id, data);
+                    drive_fields(self.node(node, devices), device, node, id, data, at);
                 }
             }
         }
@@ -506,7 +551,7 @@ impl Model {
 
     /// The answer of a read [`polls`](Self::polls) asked for (`None`: it failed, said among
     /// the events once for the name).
-    pub fn on_polled(&mut self, node: u8, index: u16, sub: u8, bytes: Option<&[u8]>) {
+    pub fn on_polled(&mut self, at: Duration, node: u8, index: u16, sub: u8, bytes: Option<&[u8]>) {
         let Some(row) = self.nodes.get_mut(&node) else { return };
         let Some(bytes) = bytes else { return };
         let mut le = [0u8; 8];
@@ -536,6 +581,10 @@ impl Model {
             (0x6064, Some(d)) => d.position = Some(int(4)),
             (0x606C, Some(d)) => d.velocity = Some(int(4)),
             _ => {}
+        }
+        if matches!(index, 0x6064 | 0x606C) {
+            let label = if index == 0x6064 { "position (polled)" } else { "velocity (polled)" };
+            row.record(index, sub, Some(label.into()), at, int(4) as f64);
         }
     }
 
@@ -718,6 +767,17 @@ impl Model {
             self.browser_key(key);
             return;
         }
+        if let Some((node, at)) = &mut self.plot {
+            let len = self.nodes.get(node).map_or(0, |n| n.series.len());
+            match key.code {
+                KeyCode::Esc | KeyCode::Char('g') => self.plot = None,
+                KeyCode::Char('q') => self.quit = true,
+                KeyCode::Up => *at = at.saturating_sub(1),
+                KeyCode::Down => *at = (*at + 1).min(len.saturating_sub(1)),
+                _ => {}
+            }
+            return;
+        }
         if let Some(input) = &mut self.input {
             match key.code {
                 KeyCode::Enter => {
@@ -758,6 +818,11 @@ impl Model {
             }
             KeyCode::Char('p') => self.paused = !self.paused,
             KeyCode::Char('o') => self.open_browser(devices),
+            KeyCode::Char('g') => match self.selected_node() {
+                Some(n) if !n.series.is_empty() => self.plot = Some((n.id, 0)),
+                Some(n) => self.status = Some(format!("node {}: no values to plot yet (TPDOs or polled)", n.id)),
+                None => self.status = Some("no node selected".into()),
+            },
             KeyCode::Enter if self.focus == Pane::Nodes => self.open_browser(devices),
             KeyCode::Char('/') => self.input = Some(self.filter.text()),
             KeyCode::Up | KeyCode::Char('k') => self.move_by(-1),
@@ -835,8 +900,7 @@ pub fn mode_name(mode: i8) -> String {
 }
 
 /// The CiA 402 objects a TPDO of `device` carries, into `row`.
-fn drive_fields(row: &mut NodeRow, device: &Device, node: u8, id: u32, data: &[u8]) {
-    let Some(drive) = &mut row.drive else { return };
+fn drive_fields(row: &mut NodeRow, device: &Device, node: u8, id: u32, data: &[u8], at: Duration) {
     let pdos = device.pdos(node);
     let Some(pdo) = pdos.iter().find(|p| p.cob_id == id) else { return };
     let mut bit = 0usize;
@@ -851,8 +915,17 @@ fn drive_fields(row: &mut NodeRow, device: &Device, node: u8, id: u32, data: &[u
             v |= u64::from(data[b / 8] >> (b % 8) & 1) << i;
         }
         bit += bits;
-        // Signed, from its width.
+        if f.index < 0x1000 {
+            continue; // a dummy entry fills a gap
+        }
+        // Signed, from its width, when its type is.
         let signed = if bits < 64 && v >> (bits - 1) & 1 == 1 { (v | !0u64 << bits) as i64 } else { v as i64 };
+        let is_signed =
+            device.model.entry(f.index, f.sub).is_some_and(|e| format!("{:?}", e.data_type).starts_with("Integer"));
+        let label =
+            device.names.name_of(f.index, f.sub).map_or_else(|| format!("{:04X}h:{}", f.index, f.sub), str::to_owned);
+        row.record(f.index, f.sub, Some(label), at, if is_signed { signed as f64 } else { v as f64 });
+        let Some(drive) = &mut row.drive else { continue };
         if f.sub == 0 && DRIVE_OBJECTS.contains(&f.index) && !drive.in_tpdo.contains(&f.index) {
             drive.in_tpdo.push(f.index);
         }

@@ -104,6 +104,14 @@ async fn top_screens_of_drives_booting_moving_failing() {
     assert_eq!(d.velocity, Some(5_000), "{d:?}");
     assert!(d.position.is_some_and(|p| p > 1_000), "{d:?}");
     insta::assert_snapshot!("3_moving", r.screen());
+    // Its position over time, in degrees (polled: the DRVI's TPDO carries only its statusword).
+    r.key(KeyCode::Char('g'));
+    let series: Vec<_> = r.model.nodes[&2].series.values().map(|s| s.label.clone()).collect();
+    assert_eq!(series, ["statusword", "position (polled)", "velocity (polled)"]);
+    r.key(KeyCode::Down);
+    insta::assert_snapshot!("3_moving_plot", r.screen());
+    r.key(KeyCode::Esc);
+    assert_eq!(r.model.plot, None);
 
     // The DRCS refuses to move before homing: EMCY FF13h with its sidecar's text.
     let drcs = od_master::Axis::new(r.bus.node(3).unwrap());

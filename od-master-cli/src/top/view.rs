@@ -6,8 +6,11 @@ use std::time::Duration;
 use ratatui::Frame;
 use ratatui::layout::{Constraint, Layout, Rect};
 use ratatui::style::{Color, Modifier, Style};
+use ratatui::symbols;
 use ratatui::text::{Line, Span};
-use ratatui::widgets::{Block, Borders, Cell, List, ListItem, ListState, Paragraph, Row, Table, TableState};
+use ratatui::widgets::{
+    Axis, Block, Borders, Cell, Chart, Dataset, GraphType, List, ListItem, ListState, Paragraph, Row, Table, TableState,
+};
 
 use super::model::{Browser, Health, Model, Pane, mode_name, nmt_name, state_name};
 
@@ -26,11 +29,44 @@ pub fn draw(f: &mut Frame, m: &Model, now: Duration) {
     draw_nodes(f, m, now, nodes);
     if let Some(b) = &m.browser {
         draw_browser(f, b, events.union(frames));
+    } else if let Some((node, at)) = m.plot {
+        draw_plot(f, m, node, at, now, events.union(frames));
     } else {
         draw_events(f, m, events);
         draw_frames(f, m, frames);
     }
     draw_keys(f, m, keys);
+}
+
+/// The last 30 s of one series of a node, in physical units where its sidecar gives them.
+fn draw_plot(f: &mut Frame, m: &Model, node: u8, at: usize, now: Duration, area: Rect) {
+    let Some(row) = m.nodes.get(&node) else { return };
+    let Some((&(index, sub), series)) = row.series.iter().nth(at) else { return };
+    let (unit, per_raw) = row.unit_of(index, sub).map_or(("raw", 1.0), |(u, k)| (u, k));
+    let t1 = now.as_secs_f64().max(30.0);
+    let t0 = t1 - 30.0;
+    let points: Vec<(f64, f64)> =
+        series.points.iter().filter(|(t, _)| *t >= t0).map(|&(t, v)| (t, v * per_raw)).collect();
+    let (lo, hi) = points.iter().fold((f64::MAX, f64::MIN), |(lo, hi), &(_, v)| (lo.min(v), hi.max(v)));
+    let (lo, hi) = if points.is_empty() {
+        (0.0, 1.0)
+    } else if (hi - lo).abs() < 1e-9 {
+        (lo - 1.0, hi + 1.0)
+    } else {
+        (lo - (hi - lo) * 0.05, hi + (hi - lo) * 0.05)
+    };
+    let title =
+        format!(" node {node} {} [{unit}] ({} of {}, \u{2191}\u{2193}) ", series.label, at + 1, row.series.len());
+    let dataset = Dataset::default()
+        .marker(symbols::Marker::Braille)
+        .graph_type(GraphType::Line)
+        .style(Style::new().fg(Color::Cyan))
+        .data(&points);
+    let chart = Chart::new(vec![dataset])
+        .block(block(title, true))
+        .x_axis(Axis::default().bounds([t0, t1]).labels([format!("{t0:.0}s"), format!("{t1:.0}s")]))
+        .y_axis(Axis::default().bounds([lo, hi]).labels([format!("{lo:.1}"), format!("{hi:.1}")]));
+    f.render_widget(chart, area);
 }
 
 /// The object browser in place of the events and frames: the entries the search passes around
@@ -244,10 +280,12 @@ fn draw_keys(f: &mut Frame, m: &Model, area: Rect) {
         ])
     } else if let Some(status) = &m.status {
         Line::from(Span::styled(status.clone(), Style::new().fg(Color::Red)))
+    } else if m.plot.is_some() {
+        Line::from(" \u{2191}\u{2193} series  g/Esc back  q quit")
     } else if m.browser.is_some() {
         Line::from(" Enter read  w write  / search  \u{2191}\u{2193} select  Esc back  q quit")
     } else {
-        Line::from(" q quit  Tab pane  \u{2191}\u{2193} select  o objects  p pause  / filter")
+        Line::from(" q quit  Tab pane  \u{2191}\u{2193} select  o objects  g plot  p pause  / filter")
     };
     f.render_widget(Paragraph::new(line), area);
 }
