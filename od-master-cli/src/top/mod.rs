@@ -152,11 +152,14 @@ pub async fn run_loop<B: Backend>(
     loop {
         tokio::select! {
             _ = tick.tick() => {
+                let t0 = std::time::Instant::now();
                 feed.drain(model, devices);
                 feed.watch(bus, model).await;
                 feed.poll(bus, model, devices);
+                let t1 = std::time::Instant::now();
                 let now = feed.now();
                 terminal.draw(|f| view::draw(f, model, now)).map_err(|e| format!("cannot draw: {e}"))?;
+                model.stats.tick(t1 - t0, t1.elapsed());
             }
             key = keys.recv() => match key {
                 Some(k) => model.on_key(k, devices),
@@ -201,5 +204,16 @@ pub async fn run(
     let mut feed = Feed::new(bus);
     let result = run_loop(&mut terminal, bus, devices, &mut model, &mut feed, &mut keys).await;
     ratatui::try_restore().map_err(|e| format!("cannot restore the terminal: {e}"))?;
+    // For the benchmark (scripts/bench_top.py): the loop's figures, one JSON line.
+    if let Some(path) = std::env::var_os("OD_MASTER_TOP_STATS") {
+        let s = &model.stats;
+        let line = serde_json::json!({
+            "seconds": feed.now().as_secs_f64(), "redraws": s.redraws,
+            "draw_mean_us": s.draw.as_micros() as f64 / s.redraws.max(1) as f64, "draw_max_us": s.draw_max.as_micros(),
+            "take_mean_us": s.take.as_micros() as f64 / s.redraws.max(1) as f64,
+            "frames": model.frame_count, "dropped": model.dropped, "events": s.events, "emcys": s.emcys,
+        });
+        std::fs::write(&path, format!("{line}\n")).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    }
     result
 }

@@ -333,6 +333,33 @@ pub enum Request {
     },
 }
 
+/// What the loop measures of itself (for the benchmark).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Stats {
+    /// Redraws done.
+    pub redraws: u64,
+    /// Time spent drawing, in all.
+    pub draw: Duration,
+    /// The longest draw.
+    pub draw_max: Duration,
+    /// Time spent taking events and frames in, in all.
+    pub take: Duration,
+    /// Events taken in, in all (the events pane keeps the newest [`KEEP_EVENTS`]).
+    pub events: u64,
+    /// EMCY events among them.
+    pub emcys: u64,
+}
+
+impl Stats {
+    /// One tick: the time taking the traffic in, the time drawing.
+    pub fn tick(&mut self, take: Duration, draw: Duration) {
+        self.redraws += 1;
+        self.take += take;
+        self.draw += draw;
+        self.draw_max = self.draw_max.max(draw);
+    }
+}
+
 /// Everything `top` shows.
 #[derive(Debug)]
 pub struct Model {
@@ -371,6 +398,8 @@ pub struct Model {
     pub browser: Option<Browser>,
     /// The plot, when open: the node and its series shown (an index among its series).
     pub plot: Option<(u8, usize)>,
+    /// The loop's own figures.
+    pub stats: Stats,
     /// Reads and writes the browser asks for.
     pub requests: Vec<Request>,
     /// `--allow-writes`: without it the browser only reads.
@@ -401,6 +430,7 @@ impl Model {
             watch: Vec::new(),
             browser: None,
             plot: None,
+            stats: Stats::default(),
             requests: Vec::new(),
             allow_writes: false,
             poll: Some(POLL),
@@ -423,6 +453,7 @@ impl Model {
 
     /// An event of the master.
     pub fn on_event(&mut self, at: Duration, event: &Event, devices: &BTreeMap<u8, Device>) {
+        self.stats.events += 1;
         match event {
             Event::Node(e) => match *e {
                 NodeEvent::BootUp { node } => {
@@ -456,6 +487,7 @@ impl Model {
                 ref other => self.log(at, format!("{other:?}")),
             },
             Event::Emergency { emcy, text } => {
+                self.stats.emcys += 1;
                 let device = devices.get(&emcy.node);
                 let text = text
                     .clone()
