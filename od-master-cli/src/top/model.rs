@@ -532,10 +532,10 @@ impl Model {
                         _ => row.nmt,
                     };
                 }
-            } else if d.kind == "pdo" {
-                if let Some(device) = devices.get(&node) {
-                    drive_fields(self.node(node, devices), device, node, id, data, at);
-                }
+            } else if d.kind == "pdo"
+                && let Some(device) = devices.get(&node)
+            {
+                drive_fields(self.node(node, devices), device, node, id, data, at);
             }
         }
         if !self.paused {
@@ -780,11 +780,7 @@ impl Model {
             KeyCode::Char('w') if !allow_writes => {
                 b.result = Some("read-only: start top with --allow-writes to write".into());
             }
-            KeyCode::Char('w') => {
-                if b.current().is_some() {
-                    b.edit = Some(String::new());
-                }
-            }
+            KeyCode::Char('w') if b.current().is_some() => b.edit = Some(String::new()),
             _ => {}
         }
     }
