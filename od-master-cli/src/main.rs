@@ -350,7 +350,7 @@ async fn run(args: Args) -> Result<(), Fail> {
         Cmd::Monitor { count, duration } => monitor(&bus, &devices, count, duration, args.json).await?,
         Cmd::Top { allow_writes, poll_ms } => {
             let poll = (poll_ms > 0).then(|| Duration::from_millis(poll_ms.max(20)));
-            top::run(&bus, &addr, &devices.by_node, allow_writes, poll).await.map_err(|e| Fail(1, e))?
+            top::run(&bus, &addr, &args.eds, allow_writes, poll).await.map_err(|e| Fail(1, e))?
         }
         Cmd::Axis { node, action } => {
             let node = node_id(&node.to_string())?;

@@ -172,12 +172,15 @@ pub async fn run_loop<B: Backend>(
     }
 }
 
-/// `od-master top` in this terminal: raw mode and the alternate screen, restored on the way
-/// out, on Ctrl-C (a key in raw mode) and on a panic (ratatui's hook restores, then reports).
+/// `od-master top` in this terminal, with the devices of `eds` (the `--eds` arguments).
+///
+/// The view runs on a thread of its own (its own one-thread runtime): the bus's task keeps this
+/// one, so drawing never delays the reading of the bus (on a current-thread runtime a redraw
+/// would hold the socket unread and a busy hub would drop frames for this client).
 pub async fn run(
     bus: &Bus,
     addr: &str,
-    devices: &BTreeMap<u8, Device>,
+    eds: &[String],
     allow_writes: bool,
     poll: Option<Duration>,
 ) -> Result<(), String> {
@@ -185,6 +188,26 @@ pub async fn run(
     if !std::io::stdout().is_terminal() {
         return Err("top needs a terminal: run it in one (for a log, use `monitor`)".into());
     }
+    let (bus, addr, eds) = (bus.clone(), addr.to_owned(), eds.to_vec());
+    tokio::task::spawn_blocking(move || {
+        let devices = crate::Devices::load(&eds).map_err(|crate::Fail(_, m)| m)?;
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .map_err(|e| format!("cannot start the view's runtime: {e}"))?;
+        runtime.block_on(view_main(&bus, &addr, &devices.by_node, allow_writes, poll))
+    })
+    .await
+    .map_err(|e| format!("the view stopped: {e}"))?
+}
+
+async fn view_main(
+    bus: &Bus,
+    addr: &str,
+    devices: &BTreeMap<u8, Device>,
+    allow_writes: bool,
+    poll: Option<Duration>,
+) -> Result<(), String> {
     // Keys come from a thread of their own: crossterm's read blocks.
     let (tx, mut keys) = mpsc::channel(64);
     std::thread::spawn(move || {
