@@ -48,6 +48,12 @@ venv_ready() {
   export ODGEN_PYTHON="$PYTHON"
 }
 
+# `od-master top` is tested in a real terminal: tmux (tests/python/test_od_master_top.py).
+if ! command -v tmux >/dev/null; then
+  step "tmux (for od-master top's terminal test)"
+  (apt-get update -qq && apt-get install -y -qq tmux) >/dev/null 2>&1 || echo "could not install tmux (apt-get install tmux)"
+fi
+
 # The library od-master builds without the command line's dependencies and without the code
 # generator (the CLI is the package od-master-cli); proc macros' own dependencies do not count.
 step "od-master's library: no clap, no code generator in its build"

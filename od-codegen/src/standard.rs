@@ -456,6 +456,7 @@ pub fn starting_sidecar(model: &Model, source_name: &str) -> Option<Sidecar> {
         errors: Vec::new(),
         warnings: Vec::new(),
         store: Store::default(),
+        pdo: Default::default(),
         decisions: Vec::new(),
     })
 }

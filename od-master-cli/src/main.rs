@@ -5,6 +5,7 @@
 //! the node and the object), 2 bad usage or a bus that cannot be opened.
 
 mod cli;
+mod top;
 
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -138,6 +139,19 @@ enum Cmd {
         /// The master's DCF: its 1F80h and 1F81h (CiA 302-2) set the supervision.
         #[arg(long, value_name = "DCF")]
         master_dcf: Option<PathBuf>,
+    },
+    /// A live full-screen view of the network: its nodes (NMT state, heartbeat, last EMCY,
+    /// CiA 402 state, mode, position, velocity), its events and its frames in words, and an
+    /// object browser (o). q quits.
+    Top {
+        /// Let the object browser write (each write confirmed); read-only without it.
+        #[arg(long)]
+        allow_writes: bool,
+        /// How often a drive's statusword, mode, position and velocity are read by SDO when no
+        /// TPDO carries them, in milliseconds; 0: never (leaves the SDO channels to another
+        /// master).
+        #[arg(long, default_value_t = 200, value_name = "MS")]
+        poll_ms: u64,
     },
     /// Drives a CiA 402 axis.
     Axis {
@@ -376,6 +390,10 @@ async fn run(args: Args) -> Result<(), Fail> {
             cli::run::run(bus.clone(), network, args.json).await.map_err(|e| Fail(1, e))?;
         }
         Cmd::Monitor { count, duration } => monitor(&bus, &devices, count, duration, args.json).await?,
+        Cmd::Top { allow_writes, poll_ms } => {
+            let poll = (poll_ms > 0).then(|| Duration::from_millis(poll_ms.max(20)));
+            top::run(&bus, &addr, &args.eds, allow_writes, poll).await.map_err(|e| Fail(1, e))?
+        }
         Cmd::Axis { node, action } => {
             let node = node_id(&node.to_string())?;
             let mut axis = Axis::new(bus.node(node).map_err(fail)?);

@@ -1,0 +1,238 @@
+//! Each pane of `top` against the simulated drives on the in-memory bus, in virtual time:
+//! the screen (80x24, ratatui's test backend) compared with its snapshot.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use crossterm::event::{KeyCode, KeyEvent, KeyModifiers};
+use drive::node::{DeviceKind, NodeConfig, Sim};
+use od_master::{Bus, Config};
+use ratatui::Terminal;
+use ratatui::backend::TestBackend;
+
+use super::Feed;
+use super::model::{Filter, Model, Pane};
+use super::view;
+use crate::cli::device::Device;
+
+fn device(file: &str) -> Device {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../devices").join(file);
+    Device::load(&path).expect("the device's EDS")
+}
+
+struct Rig {
+    bus: Bus,
+    _sim: std::sync::Arc<std::sync::Mutex<Sim>>,
+    devices: BTreeMap<u8, Device>,
+    model: Model,
+    feed: Feed,
+}
+
+impl Rig {
+    /// The three drives (DRVI 2, DRCS 3, AKD 4) with their descriptions.
+    fn new() -> Self {
+        let mut sim = Sim::new();
+        for (kind, id) in [(DeviceKind::Drvi, 2), (DeviceKind::Drcs, 3), (DeviceKind::Akd, 4)] {
+            let config = NodeConfig { node_id: Some(id), ..Default::default() };
+            sim.add(kind.build(&config, &drive::drives::DeviceApps::new()).expect("a simulated drive"));
+        }
+        let (bus, sim) = drive::node::spawn_with_master(sim, Config::default(), Duration::from_micros(200));
+        let devices = BTreeMap::from([
+            (2, device("camozzi-drvi.eds")),
+            (3, device("camozzi-drcs.eds")),
+            (4, device("kollmorgen-akd.eds")),
+        ]);
+        let feed = Feed::new(&bus);
+        Self { bus, _sim: sim, devices, model: Model::new("mem://top"), feed }
+    }
+
+    /// Lets `ms` of virtual time pass, taking the traffic in at 20 Hz as the loop does.
+    async fn pass(&mut self, ms: u64) {
+        let end = tokio::time::Instant::now() + Duration::from_millis(ms);
+        while tokio::time::Instant::now() < end {
+            tokio::time::sleep(Duration::from_millis(50).min(end - tokio::time::Instant::now())).await;
+            self.feed.drain(&mut self.model, &self.devices);
+            self.feed.watch(&self.bus, &mut self.model).await;
+            self.feed.poll(&self.bus, &mut self.model, &self.devices);
+        }
+    }
+
+    /// The screen as text, 80x24.
+    fn screen(&self) -> String {
+        let mut t = Terminal::new(TestBackend::new(80, 24)).unwrap();
+        let now = self.feed.now();
+        t.draw(|f| view::draw(f, &self.model, now)).unwrap();
+        let buf = t.backend().buffer();
+        let mut out = String::new();
+        for y in 0..buf.area.height {
+            for x in 0..buf.area.width {
+                out.push_str(buf[(x, y)].symbol());
+            }
+            out.push('\n');
+        }
+        out
+    }
+
+    fn key(&mut self, code: KeyCode) {
+        self.model.on_key(KeyEvent::new(code, KeyModifiers::NONE), &self.devices);
+    }
+}
+
+/// The drives boot, send heartbeats, start, one moves, one sends an EMCY, one goes silent.
+#[tokio::test(start_paused = true)]
+async fn top_screens_of_drives_booting_moving_failing() {
+    let mut r = Rig::new();
+    r.pass(20).await;
+    insta::assert_snapshot!("1_booted", r.screen());
+
+    for id in [2, 3, 4] {
+        r.bus.node(id).unwrap().write_idempotent(0x1017, 0, 100u16).await.unwrap();
+    }
+    r.bus.nmt(od_master::NmtCommand::Start, od_master::Target::All).await.unwrap();
+    r.pass(500).await;
+    // The master watches each heartbeat once it knows its period.
+    assert!(r.model.nodes.values().all(|n| n.period == Some(Duration::from_millis(100))), "{:?}", r.model.nodes);
+    insta::assert_snapshot!("2_heartbeats", r.screen());
+
+    // The DRVI enabled and turning at a constant velocity.
+    let axis = od_master::Axis::new(r.bus.node(2).unwrap());
+    axis.enable().await.unwrap();
+    axis.run_velocity(5_000, Some(50_000), Some(50_000)).await.unwrap();
+    r.pass(500).await;
+    let d = r.model.nodes[&2].drive.clone().unwrap();
+    assert_eq!(d.velocity, Some(5_000), "{d:?}");
+    assert!(d.position.is_some_and(|p| p > 1_000), "{d:?}");
+    insta::assert_snapshot!("3_moving", r.screen());
+    // Its position over time, in degrees (polled: the DRVI's TPDO carries only its statusword).
+    r.key(KeyCode::Char('g'));
+    let series: Vec<_> = r.model.nodes[&2].series.values().map(|s| s.label.clone()).collect();
+    assert_eq!(series, ["statusword", "position (polled)", "velocity (polled)"]);
+    r.key(KeyCode::Down);
+    insta::assert_snapshot!("3_moving_plot", r.screen());
+    r.key(KeyCode::Esc);
+    assert_eq!(r.model.plot, None);
+
+    // The DRCS refuses to move before homing: EMCY FF13h with its sidecar's text.
+    let drcs = od_master::Axis::new(r.bus.node(3).unwrap());
+    drcs.enable().await.unwrap();
+    drcs.set_mode(1).await.unwrap();
+    let n3 = drcs.node();
+    n3.write(0x6081, 0, 50u32).await.unwrap();
+    n3.write(0x607A, 0, 100i32).await.unwrap();
+    n3.write(0x6040, 0, 0x1Fu16).await.unwrap();
+    n3.write(0x6040, 0, 0x0Fu16).await.unwrap();
+    r.pass(200).await;
+    let emcy = r.model.nodes[&3].emcy.clone().expect("the DRCS's EMCY");
+    assert_eq!((emcy.code, emcy.text.as_str()), (0xFF13, "Operation without reset"));
+    r.key(KeyCode::Down);
+    insta::assert_snapshot!("4_emcy", r.screen());
+
+    // The AKD's heartbeat stops: late, then lost (the master's event).
+    r.bus.node(4).unwrap().write_idempotent(0x1017, 0, 0u16).await.unwrap();
+    r.pass(140).await;
+    insta::assert_snapshot!("5_late", r.screen());
+    r.pass(400).await;
+    assert!(r.model.nodes[&4].lost);
+    assert!(r.model.events.iter().any(|(_, e)| e == "node 4: heartbeat lost"), "{:?}", r.model.events);
+    insta::assert_snapshot!("6_lost", r.screen());
+
+    // Frames: only node 3's SDO, then paused.
+    r.key(KeyCode::Tab);
+    r.key(KeyCode::Tab);
+    assert_eq!(r.model.focus, Pane::Frames);
+    r.key(KeyCode::Char('/'));
+    for c in "3 sdo".chars() {
+        r.key(KeyCode::Char(c));
+    }
+    r.key(KeyCode::Enter);
+    assert_eq!(r.model.filter, Filter { node: Some(3), kind: Some("sdo".into()) });
+    r.bus.node(3).unwrap().read::<u16>(0x6041, 0).await.unwrap();
+    r.pass(50).await;
+    r.key(KeyCode::Char('p'));
+    let before = r.model.frames.len();
+    r.bus.node(3).unwrap().read::<u16>(0x6041, 0).await.unwrap();
+    r.pass(200).await;
+    assert_eq!(r.model.frames.len(), before, "paused: no new frames shown");
+    insta::assert_snapshot!("7_frames_filtered_paused", r.screen());
+
+    r.model.on_key(KeyEvent::new(KeyCode::Char('c'), KeyModifiers::CONTROL), &r.devices);
+    assert!(r.model.quit);
+}
+
+/// The object browser of the DRVI: searched by name and by index, a read shown typed, a write
+/// refused without --allow-writes, and with it asked for and confirmed.
+#[tokio::test(start_paused = true)]
+async fn top_object_browser_searches_reads_and_writes_only_when_allowed() {
+    let mut r = Rig::new();
+    r.bus.node(2).unwrap().write_idempotent(0x1017, 0, 100u16).await.unwrap();
+    r.pass(300).await;
+    r.key(KeyCode::Char('o'));
+    assert_eq!(r.model.browser.as_ref().map(|b| b.node), Some(2));
+    r.key(KeyCode::Char('/'));
+    for c in "heartbeat".chars() {
+        r.key(KeyCode::Char(c));
+    }
+    r.key(KeyCode::Enter);
+    r.key(KeyCode::Enter);
+    r.pass(100).await;
+    let b = r.model.browser.as_ref().unwrap();
+    assert_eq!(b.result.as_deref(), Some("1017h:0 = 100"), "{b:?}");
+    insta::assert_snapshot!("8_browser_read", r.screen());
+    r.key(KeyCode::Char('w'));
+    assert!(r.model.browser.as_ref().unwrap().result.as_deref().unwrap().contains("--allow-writes"));
+    // By index, then a write, confirmed.
+    r.model.allow_writes = true;
+    r.key(KeyCode::Char('/'));
+    for _ in 0..9 {
+        r.key(KeyCode::Backspace);
+    }
+    for c in "0x1017".chars() {
+        r.key(KeyCode::Char(c));
+    }
+    r.key(KeyCode::Enter);
+    r.key(KeyCode::Char('w'));
+    for c in "250".chars() {
+        r.key(KeyCode::Char(c));
+    }
+    r.key(KeyCode::Enter);
+    insta::assert_snapshot!("9_browser_confirm", r.screen());
+    r.key(KeyCode::Char('y'));
+    r.pass(100).await;
+    assert_eq!(r.model.browser.as_ref().unwrap().result.as_deref(), Some("1017h:0 written: fa00"));
+    assert_eq!(r.bus.node(2).unwrap().read::<u16>(0x1017, 0).await.unwrap(), 250);
+    // Anything but y cancels.
+    r.key(KeyCode::Char('w'));
+    r.key(KeyCode::Char('1'));
+    r.key(KeyCode::Enter);
+    r.key(KeyCode::Char('n'));
+    assert_eq!(r.model.browser.as_ref().unwrap().result.as_deref(), Some("write cancelled"));
+    assert!(r.model.requests.is_empty());
+    r.key(KeyCode::Esc);
+    assert!(r.model.browser.is_none());
+}
+
+#[test]
+fn a_filter_names_a_node_a_kind_or_both_and_says_what_is_wrong() {
+    assert_eq!(Filter::parse("").unwrap(), Filter::default());
+    assert_eq!(Filter::parse("node 3 pdo").unwrap(), Filter { node: Some(3), kind: Some("pdo".into()) });
+    assert_eq!(Filter::parse("emcy").unwrap(), Filter { node: None, kind: Some("emcy".into()) });
+    assert!(Filter::parse("200").unwrap_err().contains("not a node id"));
+    assert!(Filter::parse("bogus").unwrap_err().contains("`bogus` is neither a node id nor a kind"));
+}
+
+/// A bad filter is said on the bottom line and leaves the filter as it was.
+#[test]
+fn a_bad_filter_is_said_and_not_applied() {
+    let mut m = Model::new("mem://x");
+    for c in "/pdo".chars() {
+        m.on_key(KeyEvent::new(KeyCode::Char(c), KeyModifiers::NONE), &BTreeMap::new());
+    }
+    m.on_key(KeyEvent::new(KeyCode::Enter, KeyModifiers::NONE), &BTreeMap::new());
+    for c in "/xyz".chars() {
+        m.on_key(KeyEvent::new(KeyCode::Char(c), KeyModifiers::NONE), &BTreeMap::new());
+    }
+    m.on_key(KeyEvent::new(KeyCode::Enter, KeyModifiers::NONE), &BTreeMap::new());
+    assert_eq!(m.filter.kind.as_deref(), Some("pdo"));
+    assert!(m.status.as_deref().unwrap().contains("`pdoxyz`"), "{:?}", m.status);
+}
