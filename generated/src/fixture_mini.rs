@@ -3253,6 +3253,16 @@ PDOMapping=0
             Time,
         }
         impl Dimension {
+            /// Every dimension, in slot order.
+            const ALL: [Dimension; 7] = [
+                Dimension::Position,
+                Dimension::Velocity,
+                Dimension::Acceleration,
+                Dimension::Torque,
+                Dimension::Current,
+                Dimension::TorqueSlope,
+                Dimension::Time,
+            ];
             const fn slot(self) -> usize {
                 match self {
                     Dimension::Position => 0,
@@ -3336,8 +3346,9 @@ PDOMapping=0
                 self.value.to_f64()
             }
         }
-        /// The conversions of one configured device.
-        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        /// The conversions of one configured device. Display and Debug say its system and what
+        /// one raw unit is in each dimension: `ds402-factors: 1 raw = 1/10000 user (Position), …`.
+        #[derive(Clone, Copy, PartialEq, Eq)]
         pub struct Units {
             system: System,
             /// Physical value per raw unit (prepared for fast exact conversions both ways),
@@ -3345,6 +3356,24 @@ PDOMapping=0
             factor: [Option<(::od_runtime::__private_v2::Scale, Unit)>; 7],
             /// Internal value (increments or motor revolutions) per raw unit, per dimension.
             internal: [Option<Ratio>; 7],
+        }
+        impl core::fmt::Display for Units {
+            fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+                f.write_str(self.system.name())?;
+                let mut sep = ": 1 raw = ";
+                for d in Dimension::ALL {
+                    if let (Some(factor), Some(unit)) = (self.factor(d), self.unit(d)) {
+                        write!(f, "{sep}{factor} {} ({d:?})", unit.symbol())?;
+                        sep = ", ";
+                    }
+                }
+                Ok(())
+            }
+        }
+        impl core::fmt::Debug for Units {
+            fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+                write!(f, "Units({self})")
+            }
         }
         impl Units {
             /// The conversions for the system the dictionary selects.
