@@ -293,6 +293,9 @@ impl Axis {
         let mut interrupts = self.interrupts();
         loop {
             let sw = self.statusword().await?;
+            // What happened to the node while the statusword was read comes first: a read that
+            // a reboot cut short starts again and answers the rebooted drive's statusword.
+            self.interrupted(&mut interrupts)?;
             if done(sw) {
                 return Ok(sw);
             }
@@ -953,6 +956,21 @@ impl Axis {
     }
 
     /// Waits one poll period, or less when the drive reboots, is lost or the link goes down.
+    /// The events already received: an error when one of them ends the operation.
+    fn interrupted(&self, interrupts: &mut broadcast::Receiver<Event>) -> Result<(), Error> {
+        loop {
+            let event = match interrupts.try_recv() {
+                Ok(event) => Ok(event),
+                Err(broadcast::error::TryRecvError::Lagged(_)) => continue,
+                Err(broadcast::error::TryRecvError::Empty) => return Ok(()),
+                Err(broadcast::error::TryRecvError::Closed) => Err(broadcast::error::RecvError::Closed),
+            };
+            if let Some(why) = interruption(self.node.id(), event) {
+                return Err(self.error(STATUSWORD, 0, AxisErrorKind::Interrupted(why)));
+            }
+        }
+    }
+
     async fn pause(&self, interrupts: &mut broadcast::Receiver<Event>) -> Result<(), Error> {
         let sleep = tokio::time::sleep(self.config.poll);
         tokio::pin!(sleep);

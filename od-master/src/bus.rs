@@ -563,21 +563,48 @@ impl Task {
         }
     }
 
-    /// A boot-up of `node`: the transfers running or waiting on its SDO channel end at once
-    /// with [`Error::Rebooted`] (the node forgot them; waiting for their timeouts would only
-    /// delay its reconfiguration), before the boot-up event goes out.
-    fn rebooted(&mut self, node: u8) {
+    /// A boot-up of `node`, heard from before: the node forgot the transfer running on its SDO
+    /// channel, so it ends
+    /// at once (waiting for its timeout would only delay the node's reconfiguration). A read or
+    /// an idempotent write starts again at once, as after a lost answer, while its retries
+    /// last (a node that boots while a master reads its identity answers the read it gets
+    /// after its boot-up); any other transfer, running or waiting, ends with
+    /// [`Error::Rebooted`]: a plain write meant for the node as it was is not sent to the node
+    /// as it is now. Reads and idempotent writes that wait keep their place. All before the
+    /// boot-up event goes out.
+    fn rebooted(&mut self, node: u8, now: Micros) {
         let Some(channel) = self.channels.get_mut(&node) else { return };
-        if let Some(active) = channel.active.take() {
+        let repeatable = |request: &SdoRequest| match &request.op {
+            Op::Upload(_) => true,
+            Op::Download { idempotent, .. } => *idempotent,
+        };
+        if let Some(mut active) = channel.active.take() {
             // The machine is made idle; its abort frame, if the request was on the bus, is
             // ignored by a server that has no transfer.
             let _ = channel.client.abort(AbortCode::GENERAL_ERROR);
-            let (index, sub) = (active.request.index, active.request.sub);
-            let _ = active.request.reply.send(Err(Error::Rebooted { node, index, sub }));
+            let again = active.parked.is_none()
+                && repeatable(&active.request)
+                && active.attempts <= active.request.options.retries
+                && !active.request.reply.is_closed();
+            if again && start(&mut channel.client, &active.request, now).is_ok() {
+                active.attempts += 1;
+                channel.active = Some(active);
+            } else if active.parked.is_some() && repeatable(&active.request) {
+                // Waiting for the link: it starts once the link is back, on the node as it is.
+                channel.active = Some(active);
+            } else {
+                let (index, sub) = (active.request.index, active.request.sub);
+                let _ = active.request.reply.send(Err(Error::Rebooted { node, index, sub }));
+            }
         }
-        for request in channel.queue.drain(..) {
+        let (keep, ended): (VecDeque<_>, VecDeque<_>) = channel.queue.drain(..).partition(|r| repeatable(r));
+        channel.queue = keep;
+        for request in ended {
             let (index, sub) = (request.index, request.sub);
             let _ = request.reply.send(Err(Error::Rebooted { node, index, sub }));
+        }
+        if channel.active.is_none() {
+            self.next(node, now);
         }
     }
 
@@ -797,6 +824,9 @@ impl Task {
         let now = self.now();
         let id = frame.id();
         let from = id & 0x7F;
+        // A boot-up from a node heard before is a reboot; a node's first boot-up (a master that
+        // started first, a drive powered on) ends none of the transfers it may yet answer.
+        let heard_before = from != 0 && self.heard & (1 << from) != 0;
         // EMCY, TPDO 1..4, SDO answer, heartbeat: the node is on the bus.
         if from != 0 && matches!(id >> 7, 0x1 | 0x3 | 0x5 | 0x7 | 0x9 | 0xB | 0xE) {
             self.heard |= 1 << from;
@@ -820,8 +850,10 @@ impl Task {
                 event = self.monitor.on_frame(&frame, now);
             }
             if let Some(node_event) = event {
-                if let od_runtime::master::NodeEvent::BootUp { node } = node_event {
-                    self.rebooted(node);
+                if let od_runtime::master::NodeEvent::BootUp { node } = node_event
+                    && heard_before
+                {
+                    self.rebooted(node, now);
                 }
                 let _ = self.events.send(Event::Node(node_event));
             }

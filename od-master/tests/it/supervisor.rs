@@ -171,21 +171,47 @@ async fn a_power_cycled_drive_is_configured_again_and_the_others_miss_no_sync() 
 async fn an_sdo_transfer_to_a_node_that_reboots_ends_at_once() {
     let rig = rig(&[]);
     let mut device = rig.sim.lock().unwrap().endpoint();
+    // The node is on the bus (a heartbeat): a boot-up from it now is a reboot.
+    device.send("705#7F".parse().unwrap()).unwrap();
+    pass(Duration::from_millis(1)).await;
+    // A plain write, and a read with no retries left: each ends at once, saying why.
+    let node = rig.bus.node(5).unwrap().with_retries(0);
+    for (request, index, sub) in [("605#2B17100064000000", 0x1017, 0), ("605#4018100100000000", 0x1018, 1)] {
+        let n = node.clone();
+        let transfer = tokio::spawn(async move {
+            if index == 0x1017 {
+                n.write::<u16>(0x1017, 0, 100).await
+            } else {
+                n.read::<u32>(0x1018, 1).await.map(drop)
+            }
+        });
+        pass(Duration::from_millis(5)).await;
+        assert_eq!(device.try_recv().unwrap().unwrap().to_string(), request);
+        let started = tokio::time::Instant::now();
+        device.send("705#00".parse().unwrap()).unwrap();
+        let result = transfer.await.unwrap();
+        assert!(started.elapsed() < Duration::from_millis(5), "{:?}", started.elapsed());
+        match result {
+            Err(e @ Error::Rebooted { node: 5, .. }) => assert_eq!(
+                e.to_string(),
+                format!("node 5, {index:04X}h sub {sub}: the node rebooted (boot-up message) during the transfer")
+            ),
+            other => panic!("{other:?}"),
+        }
+        while let Ok(Some(_)) = device.try_recv() {}
+    }
+    // A read with retries left starts again at once on the rebooted node, and its answer ends it.
     let node = rig.bus.node(5).unwrap();
     let read = tokio::spawn(async move { node.read::<u32>(0x1018, 1).await });
     pass(Duration::from_millis(5)).await;
-    let request = device.try_recv().unwrap().unwrap();
-    assert_eq!(request.to_string(), "605#4018100100000000");
-    let started = tokio::time::Instant::now();
+    assert_eq!(device.try_recv().unwrap().unwrap().to_string(), "605#4018100100000000");
     device.send("705#00".parse().unwrap()).unwrap();
-    let result = read.await.unwrap();
-    assert!(started.elapsed() < Duration::from_millis(5), "{:?}", started.elapsed());
-    match result {
-        Err(e @ Error::Rebooted { node: 5, index: 0x1018, sub: 1 }) => {
-            assert_eq!(e.to_string(), "node 5, 1018h sub 1: the node rebooted (boot-up message) during the transfer");
-        }
-        other => panic!("{other:?}"),
-    }
+    pass(Duration::from_millis(1)).await;
+    // The abort of the forgotten transfer (which the rebooted server ignores), then the request.
+    assert_eq!(device.try_recv().unwrap().unwrap().to_string(), "605#8018100100000008");
+    assert_eq!(device.try_recv().unwrap().unwrap().to_string(), "605#4018100100000000");
+    device.send("585#4318100197000000".parse().unwrap()).unwrap();
+    assert_eq!(read.await.unwrap().unwrap(), 0x97);
 }
 
 /// x_axis mandatory with `policy` as the network's answer to its failure; a DRCS at node 2.

@@ -339,7 +339,14 @@ impl Check {
         READER.with_borrow_mut(|reader| {
             let reader = reader.get_or_insert_with(|| eds::Reader::with_room(room));
             let mut parsed = reader.read_probed(probed, &self.options)?;
-            let mut extra = if self.codegen { self.codegen_diagnostics(&parsed, probed.path()) } else { Vec::new() };
+            // The generator's diagnostics for a file the reader accepts: a build stops at the
+            // reader's errors, and generating from a refused file (bounded by the reader, but
+            // large) would cost memory and time for nothing.
+            let mut extra = if self.codegen && !parsed.has_errors() {
+                self.codegen_diagnostics(&parsed, probed.path())
+            } else {
+                Vec::new()
+            };
             if !self.allowed.is_empty() {
                 parsed.diagnostics.retain(|d| od_codegen::shown(d, &self.allowed));
                 extra.retain(|d| od_codegen::shown(d, &self.allowed));
