@@ -474,7 +474,7 @@ impl Builder {
                 let stamp = out_dir.join(format!("{}.diagnostics", o.module));
                 println!("cargo:rerun-if-changed={}", stamp.display());
                 let lines = o.short_lines(Severity::Warning);
-                let mut text = format!("# generated {:016x}\n", digest(&o.text));
+                let mut text = format!("# generated {:016x}\n", digest(&[&o.source.text, &o.text]));
                 for l in &lines {
                     text.push_str(l);
                     text.push('\n');
@@ -519,12 +519,13 @@ impl Builder {
     }
 }
 
-/// A digest of the generated text (it changes when the description, its sidecar or the
-/// settings change what is generated).
-fn digest(text: &str) -> u64 {
+/// A digest of the description's text and the generated text: it changes with every change
+/// of the file (a comment included: "once per change of the file"), of its sidecar or of the
+/// settings that change what is generated.
+fn digest(texts: &[&str]) -> u64 {
     use std::hash::{Hash, Hasher};
     let mut h = std::collections::hash_map::DefaultHasher::new();
-    text.hash(&mut h);
+    texts.hash(&mut h);
     h.finish()
 }
 

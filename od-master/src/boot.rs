@@ -338,6 +338,24 @@ pub enum BootError {
 }
 
 impl BootError {
+    /// CiA 302-2's letter for why a node's boot failed ("boot slave" error status), where one fits:
+    /// `B` no answer reading 1000h, `C` 1000h differs, `D` 1018h:1 (vendor) differs, `M` 1018h:2
+    /// (product) differs, `N` 1018h:3 (revision) differs, `J` configuration download failed, `K`
+    /// no heartbeat in the start error control.
+    pub fn reason_letter(&self) -> Option<char> {
+        match self {
+            BootError::Identity { index: 0x1000, .. } => Some('C'),
+            BootError::Identity { index: 0x1018, sub: 1, .. } => Some('D'),
+            BootError::Identity { index: 0x1018, sub: 2, .. } => Some('M'),
+            BootError::Identity { index: 0x1018, sub: 3, .. } => Some('N'),
+            BootError::Identity { .. } => None,
+            BootError::NoHeartbeat { .. } => Some('K'),
+            BootError::Bus { stage: Stage::Identity, .. } => Some('B'),
+            BootError::Bus { stage: Stage::Configure, .. } => Some('J'),
+            BootError::Bus { stage: Stage::Nmt, .. } => None,
+        }
+    }
+
     /// The object the failure is about, if any.
     pub fn object(&self) -> Option<(u16, u8)> {
         match self {

@@ -191,7 +191,7 @@ pub enum SupervisorEvent {
         step: Stage,
         /// The object it failed at, if any.
         object: Option<(u16, u8)>,
-        /// CiA 302-2's letter for it ([`policy::reason_letter`]).
+        /// CiA 302-2's letter for it ([`BootError::reason_letter`](crate::boot::BootError::reason_letter)).
         reason: Option<char>,
         /// The whole error, in words.
         message: String,
@@ -648,7 +648,7 @@ impl Supervisor {
                     name: r.name.clone(),
                     step,
                     object: e.object(),
-                    reason: policy::reason_letter(e),
+                    reason: e.reason_letter(),
                     message: e.to_string(),
                 });
                 // A boot after a reset without a boot-up heard (the node may still be out of

@@ -40,6 +40,7 @@ pub mod master;
 pub mod nmt;
 pub mod od;
 pub mod pdo;
+mod remapping;
 pub mod sdo;
 mod sdo_block;
 pub mod storage;

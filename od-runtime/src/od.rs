@@ -647,7 +647,7 @@ pub trait ObjectDictionary {
     /// When a master may change a PDO's mapping and CAN-ID ([`crate::pdo::Remapping`]): a
     /// generated dictionary's comes from its sidecar (`[pdo] remapping`). Default: CiA 301's.
     /// A constant, so a firmware links only the rule it keeps.
-    const PDO_REMAPPING: crate::pdo::Remapping = crate::pdo::Remapping::Cia301;
+    const PDO_REMAPPING: crate::remapping::Remapping = crate::remapping::Remapping::Cia301;
 
     /// Whether the device answers LSS (CiA 305; the EDS's `LSS_Supported=1`), with
     /// od-runtime's `lss` feature. Default: no.

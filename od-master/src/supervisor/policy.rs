@@ -278,25 +278,6 @@ fn allowed(node: &NodeSupervision, failure: FailureAction) -> Option<Action> {
     Action::of(failure)
 }
 
-/// CiA 302-2's letter for why a node's boot failed ("boot slave" error status), where one fits:
-/// `B` no answer reading 1000h, `C` 1000h differs, `D` 1018h:1 (vendor) differs, `M` 1018h:2
-/// (product) differs, `N` 1018h:3 (revision) differs, `J` configuration download failed, `K`
-/// no heartbeat in the start error control.
-pub fn reason_letter(error: &crate::boot::BootError) -> Option<char> {
-    use crate::boot::{BootError, Stage};
-    match error {
-        BootError::Identity { index: 0x1000, .. } => Some('C'),
-        BootError::Identity { index: 0x1018, sub: 1, .. } => Some('D'),
-        BootError::Identity { index: 0x1018, sub: 2, .. } => Some('M'),
-        BootError::Identity { index: 0x1018, sub: 3, .. } => Some('N'),
-        BootError::Identity { .. } => None,
-        BootError::NoHeartbeat { .. } => Some('K'),
-        BootError::Bus { stage: Stage::Identity, .. } => Some('B'),
-        BootError::Bus { stage: Stage::Configure, .. } => Some('J'),
-        BootError::Bus { stage: Stage::Nmt, .. } => None,
-    }
-}
-
 /// The master's heartbeat consumer time for a node: the description's `heartbeat_timeout_ms`,
 /// else twice its producer time plus 50 ms (one heartbeat may be late, not two); `None` when
 /// it produces no heartbeat or 0 was given.
