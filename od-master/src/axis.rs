@@ -1022,7 +1022,7 @@ impl Axis {
         }
     }
 
-    /// Brings the drive back after a reboot or a fault, explicitly: [`fault_reset`]
+    /// Brings the drive back after a reboot or a fault, explicitly: [`fault_reset`](Self::fault_reset)
     /// (Self::fault_reset) if it is in Fault, then mode `mode` (6060h, confirmed by 6061h),
     /// then [`enable`](Self::enable).
     pub async fn recover(&self, mode: i8) -> Result<(), Error> {
