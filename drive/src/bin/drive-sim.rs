@@ -694,6 +694,7 @@ fn faults_on_demand(path: &std::path::Path, _nodes: Named) -> Result<Named, Stri
 }
 
 /// `NODE COMMAND...` to the device's fault injector.
+#[cfg(unix)]
 fn fault_command(
     line: &str,
     handles: &std::collections::BTreeMap<u8, drive::node::FaultHandle>,
