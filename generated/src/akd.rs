@@ -6561,9 +6561,9 @@ Denotation=MOTOR.BRAKEIMM
         0x60BB, 0x60BC, 0x60BD, 0x60C0, 0x60C1, 0x60C2, 0x60C4, 0x60D0, 0x60F4, 0x60FD,
         0x60FE, 0x60FF, 0x6502,
     ];
-    static LOOKUP: ::od_runtime::__private_v2::Lookup = ::od_runtime::__private_v2::Lookup {
-        pages: ::od_runtime::__private_v2::pages(&OBJECTS),
-        bits: &::od_runtime::__private_v2::bits::<16>(&OBJECTS),
+    static LOOKUP: ::od_runtime::__private_v3::Lookup = ::od_runtime::__private_v3::Lookup {
+        pages: ::od_runtime::__private_v3::pages(&OBJECTS),
+        bits: &::od_runtime::__private_v3::bits::<16>(&OBJECTS),
         ranks: &[
             [0, 37, 37, 37],
             [37, 49, 49, 49],
@@ -6620,68 +6620,68 @@ Denotation=MOTOR.BRAKEIMM
     };
     /// Where a host finds each object's run of entries in one read (1 KB per page of
     /// 256 indices); empty on a microcontroller, which binary-searches `ROWS`.
-    static DIRECT: [u32; ::od_runtime::__private_v2::direct_len(16)] = ::od_runtime::__private_v2::direct(
+    static DIRECT: [u32; ::od_runtime::__private_v3::direct_len(16)] = ::od_runtime::__private_v3::direct(
         &ROWS,
     );
     /// The entry table the device reads, sorted by `(index, sub)`: 8 bytes a row.
     /// [`ENTRIES`] is made from it.
-    pub static ROWS: [::od_runtime::__private_v2::Row; 591] = [
-        ::od_runtime::__private_v2::Row {
+    pub static ROWS: [::od_runtime::__private_v3::Row; 591] = [
+        ::od_runtime::__private_v3::Row {
             index: 0x1000,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, device_type),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(0),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1001,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, error_register),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1002,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_status_register),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6690,340 +6690,340 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(1),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 9,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_9),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 10,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_10),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1005,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, cob_id_sync_message),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(2),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1006,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, communication_cycle_period),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1008,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            slot: ::od_runtime::__private_v2::offset::<
-                ::od_runtime::__private_v2::Bytes<32>,
+            slot: ::od_runtime::__private_v3::offset::<
+                ::od_runtime::__private_v3::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_device_name),
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 Some(3),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1009,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            slot: ::od_runtime::__private_v2::offset::<
-                ::od_runtime::__private_v2::Bytes<32>,
+            slot: ::od_runtime::__private_v3::offset::<
+                ::od_runtime::__private_v3::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_hardware_version),
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 Some(4),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x100A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            slot: ::od_runtime::__private_v2::offset::<
-                ::od_runtime::__private_v2::Bytes<32>,
+            slot: ::od_runtime::__private_v3::offset::<
+                ::od_runtime::__private_v3::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_software_version),
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x100C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, guard_time),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x100D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, life_time_factor),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1010,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, store_parameters_number_of_entries),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(6),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1010,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, store_parameters_save_all),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(6),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1011,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7032,51 +7032,51 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(6),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1011,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, restore_default_parameters_all),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(6),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1014,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, cob_id_emcy),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(7),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1016,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7085,187 +7085,187 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(6),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1016,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, consumer_heartbeat_time_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1017,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, producer_heartbeat_time),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1018,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_number_of_entries),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(8),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1018,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_vendor_id),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(9),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1018,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_product_code),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(10),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1018,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_revision_number),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(11),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1018,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_serial_number),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1026,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, os_prompt_number_of_entries),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1026,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, os_prompt_std_in),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Wo,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1026,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, os_prompt_std_out),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1400,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7274,17 +7274,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1400,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7293,17 +7293,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(13),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1400,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7312,17 +7312,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(14),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1401,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7331,17 +7331,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1401,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7350,17 +7350,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(15),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1401,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7369,17 +7369,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(14),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1402,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7388,17 +7388,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1402,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7407,17 +7407,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(16),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1402,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7426,17 +7426,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(14),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1403,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7445,17 +7445,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1403,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7464,17 +7464,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(17),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1403,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7483,17 +7483,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(14),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7502,17 +7502,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(18),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7521,17 +7521,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(19),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7540,17 +7540,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7559,17 +7559,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7578,17 +7578,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7597,17 +7597,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7616,17 +7616,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7635,17 +7635,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7654,17 +7654,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7673,17 +7673,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(20),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7692,17 +7692,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(19),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7711,17 +7711,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(21),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7730,17 +7730,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7749,17 +7749,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7768,17 +7768,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7787,17 +7787,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7806,17 +7806,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7825,17 +7825,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7844,17 +7844,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(20),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7863,17 +7863,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(19),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7882,17 +7882,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(22),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7901,17 +7901,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7920,17 +7920,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7939,17 +7939,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7958,17 +7958,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7977,17 +7977,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7996,17 +7996,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8015,17 +8015,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(20),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8034,17 +8034,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(19),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8053,17 +8053,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(23),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8072,17 +8072,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8091,17 +8091,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8110,17 +8110,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8129,17 +8129,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8148,17 +8148,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8167,17 +8167,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1800,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8186,17 +8186,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(24),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1800,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8205,17 +8205,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(25),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1800,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8224,17 +8224,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(14),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1800,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -8243,17 +8243,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1800,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8262,17 +8262,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1800,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -8281,17 +8281,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1801,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8300,17 +8300,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(24),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1801,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8319,17 +8319,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(26),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1801,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8338,17 +8338,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(14),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1801,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -8357,17 +8357,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1801,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8376,17 +8376,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1801,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -8395,17 +8395,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1802,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8414,17 +8414,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(24),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1802,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8433,17 +8433,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(27),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1802,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8452,17 +8452,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(14),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1802,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -8471,17 +8471,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1802,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8490,17 +8490,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1802,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -8509,17 +8509,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1803,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8528,17 +8528,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(24),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1803,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8547,17 +8547,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(28),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1803,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8566,17 +8566,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(14),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1803,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -8585,17 +8585,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1803,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8604,17 +8604,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1803,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -8623,17 +8623,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8642,17 +8642,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(18),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8661,17 +8661,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(29),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8680,17 +8680,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8699,17 +8699,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8718,17 +8718,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8737,17 +8737,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8756,17 +8756,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8775,17 +8775,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8794,17 +8794,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8813,17 +8813,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(20),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8832,17 +8832,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(29),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8851,17 +8851,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(30),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8870,17 +8870,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8889,17 +8889,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8908,17 +8908,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8927,17 +8927,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8946,17 +8946,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8965,17 +8965,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8984,17 +8984,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(20),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9003,17 +9003,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(29),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9022,17 +9022,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(31),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9041,17 +9041,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9060,17 +9060,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9079,17 +9079,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9098,17 +9098,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9117,17 +9117,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9136,17 +9136,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -9155,17 +9155,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(20),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9174,17 +9174,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(29),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9193,17 +9193,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(32),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9212,17 +9212,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9231,17 +9231,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9250,17 +9250,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9269,17 +9269,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9288,17 +9288,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -9307,17 +9307,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2014,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -9326,51 +9326,51 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2014,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, transmit_pdo_1_mask_bytes_0_to_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(33),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2014,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, transmit_pdo_1_mask_bytes_4_to_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(33),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2015,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -9379,51 +9379,51 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2015,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, transmit_pdo_2_mask_bytes_0_to_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(33),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2015,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, transmit_pdo_2_mask_bytes_4_to_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(33),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2016,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -9432,51 +9432,51 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2016,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, transmit_pdo_3_mask_bytes_0_to_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(33),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2016,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, transmit_pdo_3_mask_bytes_4_to_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(33),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2017,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -9485,391 +9485,391 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2017,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, transmit_pdo_4_mask_bytes_0_to_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(33),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2017,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, transmit_pdo_4_mask_bytes_4_to_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(33),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2018,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, firmware_version_number_of_entries),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 Some(8),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2018,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, firmware_version_major),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2018,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, firmware_version_minor),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2018,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, firmware_version_revision),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2018,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, firmware_version_derived),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2026,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, ascii_channel_number_of_entries),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2026,
             sub: 1,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            slot: ::od_runtime::__private_v2::offset::<
-                ::od_runtime::__private_v2::Bytes<32>,
+            slot: ::od_runtime::__private_v3::offset::<
+                ::od_runtime::__private_v3::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, ascii_channel_command),
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Wo,
                 false,
                 Some(4),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2026,
             sub: 2,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            slot: ::od_runtime::__private_v2::offset::<
-                ::od_runtime::__private_v2::Bytes<32>,
+            slot: ::od_runtime::__private_v3::offset::<
+                ::od_runtime::__private_v3::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, ascii_channel_response),
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(4),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x204C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, pv_scaling_factor_number_of_entries),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x204C,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, pv_scaling_factor_numerator),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(34),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x204C,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, pv_scaling_factor_denominator),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(34),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2050,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, secondary_feedback_position),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2071,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, target_current),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2077,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, current_actual_value),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x20A0,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, latch_position_1_positive_edge),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x20A1,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, latch_position_1_negative_edge),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x20A2,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, latch_position_2_positive_edge),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x20A3,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, latch_position_2_negative_edge),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x20A4,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, latch_control_register),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rww,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x20A5,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, latch_status_register),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rwr,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x20A6,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -9878,51 +9878,51 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x20B8,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, reset_of_changed_input_information),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2100,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, dummy_entry_4_bytes),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3405,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -9931,17 +9931,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(8),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3405,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -9950,17 +9950,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3405,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -9969,17 +9969,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3405,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -9988,17 +9988,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3405,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10007,17 +10007,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3406,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10026,17 +10026,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(35),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3406,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10046,17 +10046,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3406,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10066,17 +10066,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3406,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10086,17 +10086,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3406,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10106,17 +10106,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3406,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10125,17 +10125,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3406,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10144,17 +10144,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3406,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10163,17 +10163,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3406,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10182,17 +10182,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3406,
             sub: 9,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10202,17 +10202,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3406,
             sub: 10,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10222,17 +10222,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3406,
             sub: 11,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10242,17 +10242,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3406,
             sub: 12,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10262,17 +10262,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3406,
             sub: 13,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10281,17 +10281,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3406,
             sub: 14,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10300,17 +10300,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3406,
             sub: 15,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10319,17 +10319,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3406,
             sub: 16,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10338,17 +10338,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3407,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10357,17 +10357,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(8),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3407,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -10377,17 +10377,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3407,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10396,17 +10396,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3407,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10415,17 +10415,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3407,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10434,51 +10434,51 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3412,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, regen_resistor_type),
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3414,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, regen_resistor_fault_level),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3415,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10487,85 +10487,85 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3416,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, regen_resistor_calculated_power),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3420,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, foldback_fault_level),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3421,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, foldback_fault_level_user_value),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3422,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, friction_compensation_value),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3423,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -10574,51 +10574,51 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3424,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, current_loop_pi_integrator_enable),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3425,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, overall_foldback_current_limit),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3426,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10627,17 +10627,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3427,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10646,34 +10646,34 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(36),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3427,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_protection_parameters_mode),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3427,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10682,17 +10682,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3427,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10701,51 +10701,51 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3430,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, direction_for_absolute_motion_tasks),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3431,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, motion_task_setting),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3440,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10754,17 +10754,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(36),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3440,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10773,17 +10773,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3440,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10792,17 +10792,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3440,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10811,102 +10811,102 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3441,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, controlled_stop_state),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3443,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, drive_disable_cause),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3444,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, dynamic_braking_maximum_current),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3445,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, emergency_timeout_for_braking),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3450,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_brake_release),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Wo,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3451,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -10915,68 +10915,68 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3452,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_maximum_voltage),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3453,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_temperature_warning_level),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3454,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_winding_thermal_constant),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3455,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -10985,17 +10985,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3456,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11004,17 +11004,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3457,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11023,17 +11023,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(36),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3457,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -11042,17 +11042,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3457,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -11061,17 +11061,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3457,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -11081,17 +11081,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3460,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11100,17 +11100,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(37),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3460,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11119,17 +11119,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3460,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11138,51 +11138,51 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3460,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, capture_engine_parameters_0_mode),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3460,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, capture_engine_parameters_1_mode),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3460,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11191,17 +11191,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3460,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11210,17 +11210,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3460,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11229,17 +11229,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3460,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11248,17 +11248,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3460,
             sub: 9,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11267,17 +11267,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3460,
             sub: 10,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11286,17 +11286,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3470,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11305,17 +11305,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(24),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3470,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(
@@ -11324,17 +11324,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3470,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(
@@ -11343,17 +11343,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3470,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Integer16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(
@@ -11362,17 +11362,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3470,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Integer16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(
@@ -11381,17 +11381,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3470,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11400,51 +11400,51 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3471,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_output_position_scale_factor),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3472,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_input_position_scale_factor),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3474,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11453,17 +11453,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(38),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3474,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11472,17 +11472,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3474,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11491,17 +11491,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3474,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11510,17 +11510,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3474,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11529,17 +11529,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3474,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11548,17 +11548,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3474,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11567,17 +11567,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3474,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11586,17 +11586,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3474,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11605,17 +11605,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3474,
             sub: 9,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11624,17 +11624,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3474,
             sub: 10,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11643,17 +11643,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3474,
             sub: 11,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11662,17 +11662,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3474,
             sub: 12,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11681,17 +11681,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3474,
             sub: 13,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11700,17 +11700,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3474,
             sub: 14,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11719,17 +11719,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3475,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11738,17 +11738,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(8),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3475,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11757,17 +11757,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3475,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11776,17 +11776,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3475,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11795,17 +11795,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3475,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11814,34 +11814,34 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3480,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_loop_integral_gain),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3481,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -11850,17 +11850,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3481,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11869,17 +11869,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3481,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11888,85 +11888,85 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3482,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_maximum_following_error),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3483,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_error_warning_level),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3484,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_additional_move_distance),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3490,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, feedback_position_offset),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3491,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -11975,51 +11975,51 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3492,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, drive_motion_status),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3493,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, emulated_encoder_output_direction),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3494,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -12028,17 +12028,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(39),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3494,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(
@@ -12047,17 +12047,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3494,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -12066,17 +12066,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3494,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -12085,17 +12085,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3494,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -12104,51 +12104,51 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3494,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, wake_and_shake_parameters_state),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3494,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, wake_and_shake_parameters_arm),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3496,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -12157,17 +12157,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(8),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3496,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -12176,17 +12176,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(40),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3496,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -12195,17 +12195,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(40),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3496,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -12214,17 +12214,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(41),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3496,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -12233,17 +12233,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(42),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A0,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -12252,17 +12252,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(43),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A0,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -12271,17 +12271,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A0,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -12290,17 +12290,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A0,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -12309,17 +12309,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A0,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -12328,17 +12328,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A0,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -12347,17 +12347,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A0,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -12366,17 +12366,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A0,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -12385,17 +12385,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A0,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -12404,17 +12404,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A1,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -12423,153 +12423,153 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(43),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A1,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, programmable_limit_switch_widths_1),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A1,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, programmable_limit_switch_widths_2),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A1,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, programmable_limit_switch_widths_3),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A1,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, programmable_limit_switch_widths_4),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A1,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, programmable_limit_switch_widths_5),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A1,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, programmable_limit_switch_widths_6),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A1,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, programmable_limit_switch_widths_7),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A1,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, programmable_limit_switch_widths_8),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A2,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -12578,153 +12578,153 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(43),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A2,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, programmable_limit_switch_times_1),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A2,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, programmable_limit_switch_times_2),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A2,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, programmable_limit_switch_times_3),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A2,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, programmable_limit_switch_times_4),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A2,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, programmable_limit_switch_times_5),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A2,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, programmable_limit_switch_times_6),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A2,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, programmable_limit_switch_times_7),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A2,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, programmable_limit_switch_times_8),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A3,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -12733,17 +12733,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(8),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A3,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -12752,17 +12752,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A3,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -12771,17 +12771,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A3,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -12790,17 +12790,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A3,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -12809,272 +12809,272 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x34A4,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, programmable_limit_switch_units),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3501,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, acceleration_ramp),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3502,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_and_jog_acceleration_ramp),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3506,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, hardware_enable_input_mode),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3509,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_input_voltage),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3522,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, deceleration_ramp),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3524,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_and_jog_deceleration_ramp),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x352A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, motion_direction),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3533,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_encoder_resolution),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3534,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, emulated_encoder_connector_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3535,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, emulated_encoder_resolution),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3537,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, emulated_encoder_index_pulse_offset),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x353B,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, feedback_type_selection),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3542,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_loop_proportional_gain),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3548,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_loop_proportional_gain),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x354B,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -13083,153 +13083,153 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x354D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_loop_integral_time),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3558,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, current_feedback),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3559,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, drive_foldback_current),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x355A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, foldback_warning_level),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3562,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_1_mode),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3565,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_2_mode),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3568,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_3_mode),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x356B,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_4_mode),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x356E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -13238,17 +13238,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x356F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -13257,1122 +13257,1122 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3586,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_temperature_fault_level),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3587,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_holding_brake_selection),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x358E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_continuous_current),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x358F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_peak_current),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3593,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_torque_constant),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3596,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, current_loop_d_component_gain_ratio),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3598,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, current_loop_proportional_gain),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x359C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_phase),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x359D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_poles),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x35A3,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_maximum_velocity),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x35A4,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_foldback_current_limit),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x35AB,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_inertia),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x35AF,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_output_1_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x35B2,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_output_2_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x35B4,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, drive_operation_mode),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x35BC,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, next_motion_task_of_motion_task_0),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x35C2,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, regen_resistor_selection),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x35C5,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_following_error),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x35C6,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, in_position_window),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x35C7,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, maximum_following_error),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x35CA,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_resolution_numerator),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x35CB,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_resolution_denominator),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x35E2,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_current_limit_for_hard_stop),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x35EB,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, save_data_to_non_volatile_memory),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Wo,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x35F0,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, set_reference_point),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Wo,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x35FE,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, stop_motion_task),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Wo,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x35FF,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, disable_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3610,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, ambient_temperature),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3611,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, heat_sink_temperature),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3612,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_temperature),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3617,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, undervoltage_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3618,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_feedback),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x361A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, dc_bus_voltage),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x361D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, undervoltage_fault_level),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3622,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, positive_velocity_limit),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3623,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, negative_velocity_limit),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3627,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, overspeed_threshold),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3629,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_input_velocity_scale_factor),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3656,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned64,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u64,
             >(
                 ::core::mem::offset_of!(Dictionary, initial_feedback_position),
                 ::od_runtime::od::DataType::Unsigned64,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3659,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, rotary_acceleration_units),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x365B,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, motion_task_number),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x365F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, rotary_velocity_units),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3660,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, rotary_position_units),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x366E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, brake_apply_delay),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x366F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, brake_release_delay),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3683,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, wake_and_shake_delay_1),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3685,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, wake_and_shake_delay_2),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x36D0,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, wake_and_shake_current_vector_time),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x36D1,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, wake_and_shake_minimum_movement),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x36D7,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_automatic_move_flag),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x36E2,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, wake_and_shake_number_of_loops),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x36E5,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, can_baud_rate_selection),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(44),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x36E6,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pll_synchronization),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x36E7,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fieldbus_parameter_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x36E8,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, sync_supervision),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x36E9,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fieldbus_configuration_bits),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x36EA,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fieldbus_parameter_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x36EB,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fieldbus_parameter_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x36EC,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fieldbus_parameter_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x36ED,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fieldbus_parameter_9),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x36EE,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fieldbus_parameter_10),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x36F6,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_5_mode),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x36F9,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_6_mode),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x36FC,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_7_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x3856,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_position_velocity_window),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5000,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -14381,476 +14381,476 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5001,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_input_deadband),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5002,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_input_current_scale_factor),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5003,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_input_offset),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5009,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_output_current_scale_factor),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x500B,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_output_offset),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5013,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, bode_excitation_update_gap),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5015,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, bode_current_command_amplitude),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5016,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, bode_injection_point),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5019,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, bode_prb_signal_depth),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5060,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fault_relay_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5080,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, software_enable_default_state),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5083,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, drive_continuous_rated_current),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5084,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, drive_peak_rated_current),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5085,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, zero_procedure_current),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x508C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, biss_sensor_position_bits),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x508F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, initial_feedback_value_signed),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5096,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, phase_finding_current),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5097,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feedback_poles),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5099,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, resolver_transformation_ratio),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x509A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, resolver_reference_phase_lag),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x509C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tracking_calibration),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x50B1,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pll_lock_threshold),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x50B7,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, gearing_maximum_acceleration),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x50B9,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, gearing_maximum_deceleration),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x50BB,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, gearing_ratio_denominator),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x50BC,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, gearing_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x50BE,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, gearing_ratio_numerator),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x50E2,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -14859,680 +14859,680 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x50FB,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_pitch),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x50FE,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_thermal_resistor_type),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5104,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_type),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x510E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motion_task_after_emergency_stop),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5121,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, following_error_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5128,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_loop_feedback_source),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5175,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, service_motion_current_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5176,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, service_motion_current_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5177,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, service_motion_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5179,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, service_motion_time_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x517A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, service_motion_time_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x517E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, software_limit_switch_enable),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5184,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, linear_acceleration_units),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5187,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, linear_position_units),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x518A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, linear_velocity_units),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x518E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, overvoltage_warning_level),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x51AE,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_loop_feedback_source),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x51B0,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_generation_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x51B3,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, observer_velocity_scale),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x51B8,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, load_to_motor_inertia_ratio),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x51BA,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, observer_bandwidth),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x51BB,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, observer_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x51CB,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_1_filter_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x51CC,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_2_filter_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x51CD,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_3_filter_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x51CE,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_4_filter_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x51CF,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_5_filter_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x51D0,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_6_filter_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x51D1,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_input_7_filter_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x51E7,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, modbus_user_units_input),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x51E8,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, modbus_user_units_output),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x51E9,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, modbus_feedback_resolution),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x51EC,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, secondary_feedback_resolution),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x51ED,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, secondary_feedback_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x51EE,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, secondary_feedback_source),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x51EF,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, brake_apply_timeout),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x51F0,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, modbus_message_log),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x520C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, modbus_scaling_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x520D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, emulated_encoder_pulse_width),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x520E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -15541,714 +15541,714 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5251,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_input_deadband_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5252,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, analog_input_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5253,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, dio10_direction),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5254,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, dio10_output_inversion),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5255,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, dio11_direction),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5256,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, dio11_output_inversion),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5257,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, dio9_direction),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5258,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, dio9_output_inversion),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5259,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fault_130_action),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x525A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fault_131_action),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x525B,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fault_132_action),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x525C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fault_134_action),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x525D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fault_702_action),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x525E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, ip_address_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x525F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, load_inertia),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5260,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_back_emf_constant),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5261,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, bus_voltage_half_voltage_thresholds),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5262,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, secondary_feedback_direction),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5263,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, handwheel_feedback_source),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5264,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, hardware_enable_delay),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5265,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, current_loop_gain_scheduling_index),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5266,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, current_loop_gain_scheduling_value),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5267,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, fault_451_action),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x5268,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, brake_immediately_on_disable),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6040,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, controlword),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6041,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, statusword),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6060,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, modes_of_operation),
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6061,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, modes_of_operation_display),
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6063,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_actual_internal_value),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6064,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_actual_value),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6065,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, following_error_window),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x606B,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_demand_value),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x606C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_actual_value),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x606D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_window),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x606E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_window_time),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6071,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(Dictionary, target_torque),
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6072,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, max_torque),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6073,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, max_current),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6077,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(Dictionary, torque_actual_value),
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x607A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, target_position),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 Some(45),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x607C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, home_offset),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x607D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -16257,102 +16257,102 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x607D,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, software_position_limit_min),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x607D,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, software_position_limit_max),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6081,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_velocity),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 Some(37),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6083,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_acceleration),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6084,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_deceleration),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x608F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -16361,17 +16361,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x608F,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -16380,17 +16380,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(46),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x608F,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -16399,51 +16399,51 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(6),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6091,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, gear_ratio_number_of_entries),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6091,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, gear_ratio_motor_shaft_revolutions),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(6),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6091,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -16452,102 +16452,102 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(6),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6092,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_constant_number_of_entries),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6092,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_constant_feed),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(6),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6092,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_constant_shaft_revolutions),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(6),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6098,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_method),
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6099,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_speeds_number_of_entries),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6099,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -16556,17 +16556,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(6),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6099,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -16575,187 +16575,187 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x609A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_acceleration),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60B1,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_offset),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60B2,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(Dictionary, torque_offset),
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60B8,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, touch_probe_function),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60B9,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, touch_probe_status),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60BA,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, touch_probe_1_positive_edge),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60BB,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, touch_probe_1_negative_edge),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60BC,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, touch_probe_2_positive_edge),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60BD,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, touch_probe_2_negative_edge),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60C0,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(Dictionary, interpolation_sub_mode_select),
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(47),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60C1,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -16764,17 +16764,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(36),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60C1,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -16783,34 +16783,34 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60C1,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, interpolation_data_record_time),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60C1,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(
@@ -16819,17 +16819,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60C2,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -16838,51 +16838,51 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60C2,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, interpolation_time_period_value),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(6),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60C2,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(Dictionary, interpolation_time_period_index),
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(48),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60C4,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -16891,17 +16891,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(39),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60C4,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -16910,17 +16910,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(37),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60C4,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -16929,17 +16929,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 Some(49),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60C4,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -16948,17 +16948,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60C4,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -16967,17 +16967,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60C4,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -16986,17 +16986,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Wo,
                 false,
                 Some(50),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60C4,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -17005,17 +17005,17 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Wo,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60D0,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -17024,160 +17024,160 @@ Denotation=MOTOR.BRAKEIMM
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60D0,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(Dictionary, touch_probe_source_1),
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(51),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60D0,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(Dictionary, touch_probe_source_2),
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(51),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60F4,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, following_error_actual_value),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60FD,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_inputs),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60FE,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_outputs_number_of_entries),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60FE,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_outputs_physical),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60FE,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, digital_outputs_bit_mask),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60FF,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, target_velocity),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6502,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, supported_drive_modes),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(52),
@@ -17187,7 +17187,7 @@ Denotation=MOTOR.BRAKEIMM
     /// Metadata of every entry, sorted by `(index, sub)` (`ObjectDictionary::entries`): made
     /// from [`ROWS`] and [`EXTRAS`] at compile time. A firmware, whose device reads the rows,
     /// does not link it.
-    pub static ENTRIES: [::od_runtime::od::EntryInfo; 591] = ::od_runtime::__private_v2::entries(
+    pub static ENTRIES: [::od_runtime::od::EntryInfo; 591] = ::od_runtime::__private_v3::entries(
         &ROWS,
         &EXTRAS,
     );
@@ -18206,9 +18206,9 @@ Denotation=MOTOR.BRAKEIMM
         pre_defined_error_field_standard_10: u32,
         cob_id_sync_message: u32,
         communication_cycle_period: u32,
-        manufacturer_device_name: ::od_runtime::__private_v2::Bytes<32>,
-        manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes<32>,
-        manufacturer_software_version: ::od_runtime::__private_v2::Bytes<32>,
+        manufacturer_device_name: ::od_runtime::__private_v3::Bytes<32>,
+        manufacturer_hardware_version: ::od_runtime::__private_v3::Bytes<32>,
+        manufacturer_software_version: ::od_runtime::__private_v3::Bytes<32>,
         guard_time: u16,
         life_time_factor: u8,
         store_parameters_number_of_entries: u8,
@@ -18353,8 +18353,8 @@ Denotation=MOTOR.BRAKEIMM
         firmware_version_revision: u16,
         firmware_version_derived: u16,
         ascii_channel_number_of_entries: u8,
-        ascii_channel_command: ::od_runtime::__private_v2::Bytes<32>,
-        ascii_channel_response: ::od_runtime::__private_v2::Bytes<32>,
+        ascii_channel_command: ::od_runtime::__private_v3::Bytes<32>,
+        ascii_channel_response: ::od_runtime::__private_v3::Bytes<32>,
         pv_scaling_factor_number_of_entries: u8,
         pv_scaling_factor_numerator: i32,
         pv_scaling_factor_denominator: i32,
@@ -18802,13 +18802,13 @@ Denotation=MOTOR.BRAKEIMM
                 pre_defined_error_field_standard_10: 0x0,
                 cob_id_sync_message: 0x80,
                 communication_cycle_period: 0x0,
-                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
+                manufacturer_device_name: ::od_runtime::__private_v3::Bytes::from_slice(
                     b"M006",
                 ),
-                manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes::from_slice(
+                manufacturer_hardware_version: ::od_runtime::__private_v3::Bytes::from_slice(
                     b"",
                 ),
-                manufacturer_software_version: ::od_runtime::__private_v2::Bytes::from_slice(
+                manufacturer_software_version: ::od_runtime::__private_v3::Bytes::from_slice(
                     b"0.20",
                 ),
                 guard_time: 0,
@@ -18963,10 +18963,10 @@ Denotation=MOTOR.BRAKEIMM
                 firmware_version_revision: 0,
                 firmware_version_derived: 0,
                 ascii_channel_number_of_entries: 2,
-                ascii_channel_command: ::od_runtime::__private_v2::Bytes::from_slice(
+                ascii_channel_command: ::od_runtime::__private_v3::Bytes::from_slice(
                     b"",
                 ),
-                ascii_channel_response: ::od_runtime::__private_v2::Bytes::from_slice(
+                ascii_channel_response: ::od_runtime::__private_v3::Bytes::from_slice(
                     b"",
                 ),
                 pv_scaling_factor_number_of_entries: 2,
@@ -19418,13 +19418,13 @@ Denotation=MOTOR.BRAKEIMM
                 pre_defined_error_field_standard_10: 0,
                 cob_id_sync_message: 0,
                 communication_cycle_period: 0,
-                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
+                manufacturer_device_name: ::od_runtime::__private_v3::Bytes::from_slice(
                     &[],
                 ),
-                manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes::from_slice(
+                manufacturer_hardware_version: ::od_runtime::__private_v3::Bytes::from_slice(
                     &[],
                 ),
-                manufacturer_software_version: ::od_runtime::__private_v2::Bytes::from_slice(
+                manufacturer_software_version: ::od_runtime::__private_v3::Bytes::from_slice(
                     &[],
                 ),
                 guard_time: 0,
@@ -19571,10 +19571,10 @@ Denotation=MOTOR.BRAKEIMM
                 firmware_version_revision: 0,
                 firmware_version_derived: 0,
                 ascii_channel_number_of_entries: 0,
-                ascii_channel_command: ::od_runtime::__private_v2::Bytes::from_slice(
+                ascii_channel_command: ::od_runtime::__private_v3::Bytes::from_slice(
                     &[],
                 ),
-                ascii_channel_response: ::od_runtime::__private_v2::Bytes::from_slice(
+                ascii_channel_response: ::od_runtime::__private_v3::Bytes::from_slice(
                     &[],
                 ),
                 pv_scaling_factor_number_of_entries: 0,
@@ -20012,19 +20012,19 @@ Denotation=MOTOR.BRAKEIMM
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::lookup(&LOOKUP, &DIRECT, &ROWS, index, sub)
+            ::od_runtime::__private_v3::lookup(&LOOKUP, &DIRECT, &ROWS, index, sub)
         }
         /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
-        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v2::Slot<'_>> {
-            ::od_runtime::__private_v2::slot(self, pos)
+        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v3::Slot<'_>> {
+            ::od_runtime::__private_v3::slot(self, pos)
         }
         #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,
-        ) -> Option<::od_runtime::__private_v2::SlotMut<'_>> {
-            ::od_runtime::__private_v2::slot_mut(self, pos)
+        ) -> Option<::od_runtime::__private_v3::SlotMut<'_>> {
+            ::od_runtime::__private_v3::slot_mut(self, pos)
         }
         /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
         /// of `read_handle`.
@@ -20032,9 +20032,9 @@ Denotation=MOTOR.BRAKEIMM
         fn read_at(&self, pos: usize) -> [u8; 8] {
             match self.slot(pos) {
                 Some(slot) => {
-                    ::od_runtime::__private_v2::first8(
+                    ::od_runtime::__private_v3::first8(
                         || {
-                            ::od_runtime::__private_v2::info_at::<Self>(pos)
+                            ::od_runtime::__private_v3::info_at::<Self>(pos)
                                 .map_or(0, |e| e.bits())
                         },
                         slot,
@@ -20055,11 +20055,11 @@ Denotation=MOTOR.BRAKEIMM
         ) -> Result<(), ::od_runtime::od::AbortCode> {
             let (real_low, real_high) = (None, None);
             match (
-                ::od_runtime::__private_v2::info_at::<Self>(pos),
+                ::od_runtime::__private_v3::info_at::<Self>(pos),
                 self.slot_mut(pos),
             ) {
                 (Ok(info), Some(slot)) => {
-                    ::od_runtime::__private_v2::write(
+                    ::od_runtime::__private_v3::write(
                         &info,
                         slot,
                         data,
@@ -20078,7 +20078,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: u8,
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::bus_read(self, index, sub, buf)
+            ::od_runtime::__private_v3::bus_read(self, index, sub, buf)
         }
         /// Writes like an SDO download: as [`write`](::od_runtime::od::ObjectDictionary::write),
         /// but refuses read-only and constant entries with `READ_ONLY`.
@@ -20088,7 +20088,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: u8,
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::bus_write(self, index, sub, data)
+            ::od_runtime::__private_v3::bus_write(self, index, sub, data)
         }
         /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
         /// runtime's rules ([`check_mapping`](::od_runtime::pdo::check_mapping));
@@ -20098,7 +20098,7 @@ Denotation=MOTOR.BRAKEIMM
         pub fn check_rpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::check_mapping(
+            ::od_runtime::__private_v3::check_mapping(
                 &EXTRAS,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
@@ -20109,7 +20109,7 @@ Denotation=MOTOR.BRAKEIMM
         pub fn check_tpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::check_mapping(
+            ::od_runtime::__private_v3::check_mapping(
                 &EXTRAS,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
@@ -30828,9 +30828,9 @@ Denotation=MOTOR.BRAKEIMM
             Ok(())
         }
     }
-    unsafe impl ::od_runtime::__private_v2::Table for Dictionary {
+    unsafe impl ::od_runtime::__private_v3::Table for Dictionary {
         #[inline(always)]
-        fn rows() -> &'static [::od_runtime::__private_v2::Row] {
+        fn rows() -> &'static [::od_runtime::__private_v3::Row] {
             &ROWS
         }
         #[inline(always)]
@@ -30870,7 +30870,7 @@ Denotation=MOTOR.BRAKEIMM
             sub: u8,
         ) -> Result<::od_runtime::od::EntryInfo, ::od_runtime::od::AbortCode> {
             Self::position(index, sub)
-                .and_then(::od_runtime::__private_v2::info_at::<Self>)
+                .and_then(::od_runtime::__private_v3::info_at::<Self>)
         }
         #[inline]
         fn entry_count(&self) -> usize {
@@ -30878,7 +30878,7 @@ Denotation=MOTOR.BRAKEIMM
         }
         #[inline]
         fn entry_at(&self, pos: usize) -> Option<::od_runtime::od::EntryInfo> {
-            ::od_runtime::__private_v2::info_at::<Self>(pos).ok()
+            ::od_runtime::__private_v3::info_at::<Self>(pos).ok()
         }
         fn read(
             &self,
@@ -30887,9 +30887,9 @@ Denotation=MOTOR.BRAKEIMM
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
             let pos = Self::position(index, sub)?;
-            match (::od_runtime::__private_v2::info_at::<Self>(pos), self.slot(pos)) {
+            match (::od_runtime::__private_v3::info_at::<Self>(pos), self.slot(pos)) {
                 (Ok(info), Some(slot)) => {
-                    ::od_runtime::__private_v2::read(&info, slot, buf)
+                    ::od_runtime::__private_v3::read(&info, slot, buf)
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -30906,7 +30906,7 @@ Denotation=MOTOR.BRAKEIMM
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
             for (pos, row) in ROWS.iter().enumerate() {
                 if area.contains(row.index) && let Some(slot) = self.slot_mut(pos) {
-                    ::od_runtime::__private_v2::set_default(
+                    ::od_runtime::__private_v3::set_default(
                         &row.info(&EXTRAS),
                         slot,
                         node_id,
@@ -30926,10 +30926,10 @@ Denotation=MOTOR.BRAKEIMM
         }
         #[inline]
         fn read_mapped(&self, map: &[::od_runtime::od::MappedHandle]) -> u64 {
-            ::od_runtime::__private_v2::pack_mapped(
+            ::od_runtime::__private_v3::pack_mapped(
                 map,
                 |h| match self.slot(h.get() as usize) {
-                    Some(slot) => ::od_runtime::__private_v2::first8(|| 64, slot),
+                    Some(slot) => ::od_runtime::__private_v3::first8(|| 64, slot),
                     None => [0; 8],
                 },
             )
@@ -31151,7 +31151,7 @@ Denotation=MOTOR.BRAKEIMM
     pub mod pdo {
         /// A received PDO was shorter than its mapping.
         #[doc(inline)]
-        pub use ::od_runtime::__private_v2::PdoLengthError as LengthError;
+        pub use ::od_runtime::__private_v3::PdoLengthError as LengthError;
         /// RPDO 1 (received by the device), default mapping of `0x1600`: 16 bits in 2 bytes.
         ///
         /// | bits | object | field |
@@ -31180,7 +31180,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v2::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v3::pdo_word(data, 2)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                 })
@@ -31233,7 +31233,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v2::pdo_word(data, 3)?;
+                let w = ::od_runtime::__private_v3::pdo_word(data, 3)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                     modes_of_operation: (((((w >> 16) & 0xFF) << 56) as i64) >> 56) as i8,
@@ -31289,7 +31289,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v2::pdo_word(data, 6)?;
+                let w = ::od_runtime::__private_v3::pdo_word(data, 6)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                     target_position: (((((w >> 16) & 0xFFFFFFFF) << 32) as i64) >> 32)
@@ -31346,7 +31346,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v2::pdo_word(data, 6)?;
+                let w = ::od_runtime::__private_v3::pdo_word(data, 6)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                     target_velocity: (((((w >> 16) & 0xFFFFFFFF) << 32) as i64) >> 32)
@@ -31399,7 +31399,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v2::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v3::pdo_word(data, 2)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                 })
@@ -31452,7 +31452,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v2::pdo_word(data, 3)?;
+                let w = ::od_runtime::__private_v3::pdo_word(data, 3)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                     modes_of_operation_display: (((((w >> 16) & 0xFF) << 56) as i64)
@@ -31509,7 +31509,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v2::pdo_word(data, 6)?;
+                let w = ::od_runtime::__private_v3::pdo_word(data, 6)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                     position_actual_value: (((((w >> 16) & 0xFFFFFFFF) << 32) as i64)
@@ -31566,7 +31566,7 @@ Denotation=MOTOR.BRAKEIMM
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v2::pdo_word(data, 6)?;
+                let w = ::od_runtime::__private_v3::pdo_word(data, 6)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                     velocity_actual_value: (((((w >> 16) & 0xFFFFFFFF) << 32) as i64)
@@ -31596,7 +31596,7 @@ Denotation=MOTOR.BRAKEIMM
     /// module docs for the arithmetic).
     pub mod units {
         #[doc(inline)]
-        pub use ::od_runtime::__private_v2::Ratio;
+        pub use ::od_runtime::__private_v3::Ratio;
         /// A physical unit.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
         pub enum Unit {
@@ -31749,7 +31749,7 @@ Denotation=MOTOR.BRAKEIMM
             system: System,
             /// Physical value per raw unit (prepared for fast exact conversions both ways),
             /// and the physical unit, per dimension.
-            factor: [Option<(::od_runtime::__private_v2::Scale, Unit)>; 6],
+            factor: [Option<(::od_runtime::__private_v3::Scale, Unit)>; 6],
             /// Internal value (increments or motor revolutions) per raw unit, per dimension.
             internal: [Option<Ratio>; 6],
         }
@@ -31795,7 +31795,7 @@ Denotation=MOTOR.BRAKEIMM
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[0] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::UserUnit,
                             ));
                             internal[0] = Some(g.reduced());
@@ -31809,7 +31809,7 @@ Denotation=MOTOR.BRAKEIMM
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[1] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::UserUnitPerSecond,
                             ));
                             internal[1] = Some(g.reduced());
@@ -31823,7 +31823,7 @@ Denotation=MOTOR.BRAKEIMM
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[2] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::UserUnitPerSecond2,
                             ));
                             internal[2] = Some(g.reduced());
@@ -31831,21 +31831,21 @@ Denotation=MOTOR.BRAKEIMM
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[3] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::PermilleRatedTorque,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[4] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::MilliAmpere,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[5] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::Millisecond,
                             ));
                         }
@@ -31866,7 +31866,7 @@ Denotation=MOTOR.BRAKEIMM
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[0] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::UserUnit,
                             ));
                             internal[0] = Some(g.reduced());
@@ -31889,7 +31889,7 @@ Denotation=MOTOR.BRAKEIMM
                                 .checked_mul(Self::velocity_factor(od)?)
                                 .ok_or(UnitError::Overflow)?;
                             factor[1] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::UserUnitPerSecond,
                             ));
                             internal[1] = Some(g.reduced());
@@ -31909,7 +31909,7 @@ Denotation=MOTOR.BRAKEIMM
                                 )
                                 .ok_or(UnitError::Overflow)?;
                             factor[2] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::UserUnitPerSecond2,
                             ));
                             internal[2] = Some(g.reduced());
@@ -31917,21 +31917,21 @@ Denotation=MOTOR.BRAKEIMM
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[3] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::PermilleRatedTorque,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[4] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::MilliAmpere,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[5] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::Millisecond,
                             ));
                         }
@@ -31980,7 +31980,7 @@ Denotation=MOTOR.BRAKEIMM
                 &self,
                 d: Dimension,
                 q: &Quantity,
-            ) -> Result<&::od_runtime::__private_v2::Scale, UnitError> {
+            ) -> Result<&::od_runtime::__private_v3::Scale, UnitError> {
                 match self.factor.get(d.slot()) {
                     Some(Some((f, unit))) if *unit == q.unit => Ok(f),
                     Some(Some((_, unit))) => {

@@ -3093,9 +3093,9 @@ PDOMapping=0
         0x607E, 0x6081, 0x6083, 0x6084, 0x608F, 0x6091, 0x6092, 0x6098, 0x6099, 0x60FF,
         0x6402, 0x6404, 0x6502, 0x67FF,
     ];
-    static LOOKUP: ::od_runtime::__private_v2::Lookup = ::od_runtime::__private_v2::Lookup {
-        pages: ::od_runtime::__private_v2::pages(&OBJECTS),
-        bits: &::od_runtime::__private_v2::bits::<13>(&OBJECTS),
+    static LOOKUP: ::od_runtime::__private_v3::Lookup = ::od_runtime::__private_v3::Lookup {
+        pages: ::od_runtime::__private_v3::pages(&OBJECTS),
+        bits: &::od_runtime::__private_v3::bits::<13>(&OBJECTS),
         ranks: &[
             [0, 37, 37, 37],
             [37, 40, 40, 40],
@@ -3137,68 +3137,68 @@ PDOMapping=0
     };
     /// Where a host finds each object's run of entries in one read (1 KB per page of
     /// 256 indices); empty on a microcontroller, which binary-searches `ROWS`.
-    static DIRECT: [u32; ::od_runtime::__private_v2::direct_len(13)] = ::od_runtime::__private_v2::direct(
+    static DIRECT: [u32; ::od_runtime::__private_v3::direct_len(13)] = ::od_runtime::__private_v3::direct(
         &ROWS,
     );
     /// The entry table the device reads, sorted by `(index, sub)`: 8 bytes a row.
     /// [`ENTRIES`] is made from it.
-    pub static ROWS: [::od_runtime::__private_v2::Row; 308] = [
-        ::od_runtime::__private_v2::Row {
+    pub static ROWS: [::od_runtime::__private_v3::Row; 308] = [
+        ::od_runtime::__private_v3::Row {
             index: 0x1000,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, device_type),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(0),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1001,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, error_register),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1002,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_status_register),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3207,289 +3207,289 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1005,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, cob_id_sync),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(1),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1006,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, communication_cycle_period),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1007,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, synchronous_window_length),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1008,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            slot: ::od_runtime::__private_v2::offset::<
-                ::od_runtime::__private_v2::Bytes<32>,
+            slot: ::od_runtime::__private_v3::offset::<
+                ::od_runtime::__private_v3::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_device_name),
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 Some(2),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1009,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            slot: ::od_runtime::__private_v2::offset::<
-                ::od_runtime::__private_v2::Bytes<32>,
+            slot: ::od_runtime::__private_v3::offset::<
+                ::od_runtime::__private_v3::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_hardware_version),
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 Some(3),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x100A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            slot: ::od_runtime::__private_v2::offset::<
-                ::od_runtime::__private_v2::Bytes<32>,
+            slot: ::od_runtime::__private_v3::offset::<
+                ::od_runtime::__private_v3::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_software_version),
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 Some(4),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x100C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, guard_time),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x100D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, life_time_factor),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1010,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3498,34 +3498,34 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1010,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, store_parameter_field_save_all),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1011,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3534,204 +3534,204 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1011,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, restore_default_parameters_all),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1012,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, cob_id_time_stamp),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(6),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1014,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, cob_id_emcy),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(7),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1015,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, inhibit_time_emergency),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1017,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, producer_heartbeat_time),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1018,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_number_of_entries),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(8),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1018,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_vendor_id),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(9),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1018,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_product_code),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(10),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1018,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_revision_number),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1018,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_serial_number),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1019,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, synchronous_counter_overflow_value),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(11),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1020,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3740,51 +3740,51 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1020,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, verify_configuration_date),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1020,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, verify_configuration_time),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1200,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3793,17 +3793,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1200,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3812,17 +3812,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(13),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1200,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3831,17 +3831,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(14),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1400,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3851,17 +3851,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1400,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3870,17 +3870,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(15),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1400,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3889,17 +3889,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(16),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1401,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3909,17 +3909,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1401,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3928,17 +3928,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(17),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1401,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3947,17 +3947,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(16),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1402,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3967,17 +3967,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1402,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3986,17 +3986,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(18),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1402,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4005,17 +4005,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(16),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1403,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4025,17 +4025,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1403,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4044,17 +4044,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(19),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1403,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4063,17 +4063,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(16),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1404,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4083,17 +4083,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1404,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4102,17 +4102,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(20),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1404,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4121,17 +4121,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(16),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1405,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4141,17 +4141,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1405,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4160,17 +4160,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(20),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1405,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4179,17 +4179,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(16),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1406,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4199,17 +4199,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1406,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4218,17 +4218,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(20),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1406,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4237,17 +4237,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(16),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1407,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4257,17 +4257,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1407,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4276,17 +4276,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(20),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1407,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4295,17 +4295,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(16),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4314,153 +4314,153 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_1_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(21),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_1_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_1_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_1_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_1_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_1_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_1_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_1_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4469,153 +4469,153 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_2_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_2_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_2_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_2_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_2_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_2_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_2_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_2_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4624,153 +4624,153 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_3_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_3_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_3_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_3_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_3_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_3_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_3_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_3_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4779,153 +4779,153 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_4_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_4_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_4_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_4_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_4_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_4_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_4_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_4_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1604,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4934,153 +4934,153 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1604,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_5_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1604,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_5_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1604,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_5_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1604,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_5_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1604,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_5_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1604,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_5_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1604,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_5_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1604,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_5_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1605,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5089,153 +5089,153 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1605,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_6_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1605,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_6_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1605,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_6_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1605,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_6_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1605,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_6_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1605,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_6_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1605,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_6_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1605,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_6_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1606,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5244,153 +5244,153 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1606,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_7_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1606,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_7_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1606,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_7_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1606,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_7_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1606,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_7_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1606,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_7_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1606,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_7_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1606,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_7_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1607,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5399,153 +5399,153 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1607,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_8_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1607,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_8_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1607,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_8_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1607,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_8_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1607,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_8_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1607,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_8_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1607,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_8_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1607,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, rx_pdo_mapping_parameter_8_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1800,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5555,17 +5555,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(22),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1800,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5574,17 +5574,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(23),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1800,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5593,17 +5593,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(16),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1800,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5612,17 +5612,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1800,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5631,17 +5631,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1800,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5650,17 +5650,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1801,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5670,17 +5670,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(22),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1801,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5689,17 +5689,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(24),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1801,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5708,17 +5708,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(16),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1801,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5727,17 +5727,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1801,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5746,17 +5746,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1801,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5765,17 +5765,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1802,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5785,17 +5785,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(22),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1802,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5804,17 +5804,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(25),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1802,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5823,17 +5823,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(16),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1802,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5842,17 +5842,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1802,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5861,17 +5861,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1802,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5880,17 +5880,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1803,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5900,17 +5900,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(22),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1803,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5919,17 +5919,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(26),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1803,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5938,17 +5938,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(16),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1803,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5957,17 +5957,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1803,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5976,17 +5976,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1803,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5995,17 +5995,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1804,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6015,17 +6015,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(22),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1804,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6034,17 +6034,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(20),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1804,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6053,17 +6053,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(16),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1804,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6072,17 +6072,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1804,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6091,17 +6091,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1804,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6110,17 +6110,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1805,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6130,17 +6130,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(22),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1805,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6149,17 +6149,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(20),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1805,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6168,17 +6168,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(16),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1805,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6187,17 +6187,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1805,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6206,17 +6206,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1805,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6225,17 +6225,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1806,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6245,17 +6245,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(22),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1806,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6264,17 +6264,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(20),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1806,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6283,17 +6283,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(16),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1806,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6302,17 +6302,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1806,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6321,17 +6321,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1806,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6340,17 +6340,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1807,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6360,17 +6360,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(22),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1807,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6379,17 +6379,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(20),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1807,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6398,17 +6398,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(16),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1807,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6417,17 +6417,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1807,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6436,17 +6436,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1807,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6455,17 +6455,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6474,153 +6474,153 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_1_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(27),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_1_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_1_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_1_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_1_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_1_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_1_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_1_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6629,153 +6629,153 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_2_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_2_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_2_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_2_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_2_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_2_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_2_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_2_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6784,153 +6784,153 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_3_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_3_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_3_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_3_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_3_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_3_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_3_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_3_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6939,153 +6939,153 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_4_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_4_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_4_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_4_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_4_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_4_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_4_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_4_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A04,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7094,153 +7094,153 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A04,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_5_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A04,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_5_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A04,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_5_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A04,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_5_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A04,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_5_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A04,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_5_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A04,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_5_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A04,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_5_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A05,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7249,153 +7249,153 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A05,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_6_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A05,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_6_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A05,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_6_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A05,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_6_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A05,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_6_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A05,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_6_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A05,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_6_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A05,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_6_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A06,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7404,153 +7404,153 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A06,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_7_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A06,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_7_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A06,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_7_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A06,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_7_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A06,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_7_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A06,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_7_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A06,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_7_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A06,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_7_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A07,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7559,170 +7559,170 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A07,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_8_entry_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A07,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_8_entry_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A07,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_8_entry_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A07,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_8_entry_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A07,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_8_entry_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A07,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_8_entry_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A07,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_8_entry_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A07,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, tx_pdo_mapping_parameter_8_entry_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1F80,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, nmt_startup),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(8),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2001,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7731,442 +7731,442 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2001,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_converter_numerator),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2001,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_converter_denominator),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2002,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, input_status),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2003,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, output_status),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2004,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_status),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2005,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, brake),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2100,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, total_time_off),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2101,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, total_time_on),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2102,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, total_time_run),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2103,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, total_stroke),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x603F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, error_code),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6040,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, controlword),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6041,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, statusword),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6060,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, modes_of_operation),
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6061,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, modes_of_operation_display),
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6062,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_demand_value),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6064,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_actual_value),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x606B,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_demand_value),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x606C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_actual_value),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x606D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_window),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x606E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_window_time),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x606F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_threshold),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6070,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_threshold_time),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x607A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, target_position),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x607C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, home_offset),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x607D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8175,119 +8175,119 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x607D,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, software_position_limit_min),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x607D,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, software_position_limit_max),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(28),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x607E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, polarity),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6081,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_velocity_in_pp_mode),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6083,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_acceleration),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6084,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_deceleration),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x608F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8296,17 +8296,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x608F,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8315,17 +8315,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(28),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x608F,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -8334,17 +8334,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6091,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8353,51 +8353,51 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6091,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, gear_ratio_motor_revolutions),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6091,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, gear_ratio_shaft_revolutions),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6092,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8406,68 +8406,68 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6092,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_constant_feed),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(29),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6092,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_constant_shaft_revolutions),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6098,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_method),
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 Some(30),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6099,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8476,126 +8476,126 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6099,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_speed_fast),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6099,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_speed_slow),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60FF,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, target_velocity),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6402,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_type),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(31),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6404,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            slot: ::od_runtime::__private_v2::offset::<
-                ::od_runtime::__private_v2::Bytes<32>,
+            slot: ::od_runtime::__private_v3::offset::<
+                ::od_runtime::__private_v3::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, motor_manufacturer),
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(32),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6502,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, supported_drive_modes),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(33),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x67FF,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, single_device_type),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(34),
@@ -8605,7 +8605,7 @@ PDOMapping=0
     /// Metadata of every entry, sorted by `(index, sub)` (`ObjectDictionary::entries`): made
     /// from [`ROWS`] and [`EXTRAS`] at compile time. A firmware, whose device reads the rows,
     /// does not link it.
-    pub static ENTRIES: [::od_runtime::od::EntryInfo; 308] = ::od_runtime::__private_v2::entries(
+    pub static ENTRIES: [::od_runtime::od::EntryInfo; 308] = ::od_runtime::__private_v3::entries(
         &ROWS,
         &EXTRAS,
     );
@@ -9188,9 +9188,9 @@ PDOMapping=0
         cob_id_sync: u32,
         communication_cycle_period: u32,
         synchronous_window_length: u32,
-        manufacturer_device_name: ::od_runtime::__private_v2::Bytes<32>,
-        manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes<32>,
-        manufacturer_software_version: ::od_runtime::__private_v2::Bytes<32>,
+        manufacturer_device_name: ::od_runtime::__private_v3::Bytes<32>,
+        manufacturer_hardware_version: ::od_runtime::__private_v3::Bytes<32>,
+        manufacturer_software_version: ::od_runtime::__private_v3::Bytes<32>,
         guard_time: u16,
         life_time_factor: u8,
         store_parameter_field_highest_sub_index_supported: u8,
@@ -9478,7 +9478,7 @@ PDOMapping=0
         homing_speed_slow: u32,
         target_velocity: i32,
         motor_type: u16,
-        motor_manufacturer: ::od_runtime::__private_v2::Bytes<32>,
+        motor_manufacturer: ::od_runtime::__private_v3::Bytes<32>,
         supported_drive_modes: u32,
         single_device_type: u32,
     }
@@ -9501,13 +9501,13 @@ PDOMapping=0
                 cob_id_sync: 0x80,
                 communication_cycle_period: 0,
                 synchronous_window_length: 0,
-                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
+                manufacturer_device_name: ::od_runtime::__private_v3::Bytes::from_slice(
                     b"DRCS",
                 ),
-                manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes::from_slice(
+                manufacturer_hardware_version: ::od_runtime::__private_v3::Bytes::from_slice(
                     b"1",
                 ),
-                manufacturer_software_version: ::od_runtime::__private_v2::Bytes::from_slice(
+                manufacturer_software_version: ::od_runtime::__private_v3::Bytes::from_slice(
                     b"1.18",
                 ),
                 guard_time: 0,
@@ -9807,7 +9807,7 @@ PDOMapping=0
                 homing_speed_slow: 0,
                 target_velocity: 0,
                 motor_type: 0x9,
-                motor_manufacturer: ::od_runtime::__private_v2::Bytes::from_slice(
+                motor_manufacturer: ::od_runtime::__private_v3::Bytes::from_slice(
                     b"Camozzi",
                 ),
                 supported_drive_modes: 0x25,
@@ -9834,13 +9834,13 @@ PDOMapping=0
                 cob_id_sync: 0,
                 communication_cycle_period: 0,
                 synchronous_window_length: 0,
-                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
+                manufacturer_device_name: ::od_runtime::__private_v3::Bytes::from_slice(
                     &[],
                 ),
-                manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes::from_slice(
+                manufacturer_hardware_version: ::od_runtime::__private_v3::Bytes::from_slice(
                     &[],
                 ),
-                manufacturer_software_version: ::od_runtime::__private_v2::Bytes::from_slice(
+                manufacturer_software_version: ::od_runtime::__private_v3::Bytes::from_slice(
                     &[],
                 ),
                 guard_time: 0,
@@ -10130,7 +10130,7 @@ PDOMapping=0
                 homing_speed_slow: 0,
                 target_velocity: 0,
                 motor_type: 0,
-                motor_manufacturer: ::od_runtime::__private_v2::Bytes::from_slice(&[]),
+                motor_manufacturer: ::od_runtime::__private_v3::Bytes::from_slice(&[]),
                 supported_drive_modes: 0,
                 single_device_type: 0,
             }
@@ -10142,19 +10142,19 @@ PDOMapping=0
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::lookup(&LOOKUP, &DIRECT, &ROWS, index, sub)
+            ::od_runtime::__private_v3::lookup(&LOOKUP, &DIRECT, &ROWS, index, sub)
         }
         /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
-        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v2::Slot<'_>> {
-            ::od_runtime::__private_v2::slot(self, pos)
+        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v3::Slot<'_>> {
+            ::od_runtime::__private_v3::slot(self, pos)
         }
         #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,
-        ) -> Option<::od_runtime::__private_v2::SlotMut<'_>> {
-            ::od_runtime::__private_v2::slot_mut(self, pos)
+        ) -> Option<::od_runtime::__private_v3::SlotMut<'_>> {
+            ::od_runtime::__private_v3::slot_mut(self, pos)
         }
         /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
         /// of `read_handle`.
@@ -10162,9 +10162,9 @@ PDOMapping=0
         fn read_at(&self, pos: usize) -> [u8; 8] {
             match self.slot(pos) {
                 Some(slot) => {
-                    ::od_runtime::__private_v2::first8(
+                    ::od_runtime::__private_v3::first8(
                         || {
-                            ::od_runtime::__private_v2::info_at::<Self>(pos)
+                            ::od_runtime::__private_v3::info_at::<Self>(pos)
                                 .map_or(0, |e| e.bits())
                         },
                         slot,
@@ -10185,11 +10185,11 @@ PDOMapping=0
         ) -> Result<(), ::od_runtime::od::AbortCode> {
             let (real_low, real_high) = (None, None);
             match (
-                ::od_runtime::__private_v2::info_at::<Self>(pos),
+                ::od_runtime::__private_v3::info_at::<Self>(pos),
                 self.slot_mut(pos),
             ) {
                 (Ok(info), Some(slot)) => {
-                    ::od_runtime::__private_v2::write(
+                    ::od_runtime::__private_v3::write(
                         &info,
                         slot,
                         data,
@@ -10208,7 +10208,7 @@ PDOMapping=0
             sub: u8,
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::bus_read(self, index, sub, buf)
+            ::od_runtime::__private_v3::bus_read(self, index, sub, buf)
         }
         /// Writes like an SDO download: as [`write`](::od_runtime::od::ObjectDictionary::write),
         /// but refuses read-only and constant entries with `READ_ONLY`.
@@ -10218,7 +10218,7 @@ PDOMapping=0
             sub: u8,
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::bus_write(self, index, sub, data)
+            ::od_runtime::__private_v3::bus_write(self, index, sub, data)
         }
         /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
         /// runtime's rules ([`check_mapping`](::od_runtime::pdo::check_mapping));
@@ -10228,7 +10228,7 @@ PDOMapping=0
         pub fn check_rpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::check_mapping(
+            ::od_runtime::__private_v3::check_mapping(
                 &EXTRAS,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
@@ -10239,7 +10239,7 @@ PDOMapping=0
         pub fn check_tpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::check_mapping(
+            ::od_runtime::__private_v3::check_mapping(
                 &EXTRAS,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
@@ -15239,9 +15239,9 @@ PDOMapping=0
             Ok(())
         }
     }
-    unsafe impl ::od_runtime::__private_v2::Table for Dictionary {
+    unsafe impl ::od_runtime::__private_v3::Table for Dictionary {
         #[inline(always)]
-        fn rows() -> &'static [::od_runtime::__private_v2::Row] {
+        fn rows() -> &'static [::od_runtime::__private_v3::Row] {
             &ROWS
         }
         #[inline(always)]
@@ -15280,7 +15280,7 @@ PDOMapping=0
             sub: u8,
         ) -> Result<::od_runtime::od::EntryInfo, ::od_runtime::od::AbortCode> {
             Self::position(index, sub)
-                .and_then(::od_runtime::__private_v2::info_at::<Self>)
+                .and_then(::od_runtime::__private_v3::info_at::<Self>)
         }
         #[inline]
         fn entry_count(&self) -> usize {
@@ -15288,7 +15288,7 @@ PDOMapping=0
         }
         #[inline]
         fn entry_at(&self, pos: usize) -> Option<::od_runtime::od::EntryInfo> {
-            ::od_runtime::__private_v2::info_at::<Self>(pos).ok()
+            ::od_runtime::__private_v3::info_at::<Self>(pos).ok()
         }
         fn read(
             &self,
@@ -15297,9 +15297,9 @@ PDOMapping=0
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
             let pos = Self::position(index, sub)?;
-            match (::od_runtime::__private_v2::info_at::<Self>(pos), self.slot(pos)) {
+            match (::od_runtime::__private_v3::info_at::<Self>(pos), self.slot(pos)) {
                 (Ok(info), Some(slot)) => {
-                    ::od_runtime::__private_v2::read(&info, slot, buf)
+                    ::od_runtime::__private_v3::read(&info, slot, buf)
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -15316,7 +15316,7 @@ PDOMapping=0
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
             for (pos, row) in ROWS.iter().enumerate() {
                 if area.contains(row.index) && let Some(slot) = self.slot_mut(pos) {
-                    ::od_runtime::__private_v2::set_default(
+                    ::od_runtime::__private_v3::set_default(
                         &row.info(&EXTRAS),
                         slot,
                         node_id,
@@ -15336,10 +15336,10 @@ PDOMapping=0
         }
         #[inline]
         fn read_mapped(&self, map: &[::od_runtime::od::MappedHandle]) -> u64 {
-            ::od_runtime::__private_v2::pack_mapped(
+            ::od_runtime::__private_v3::pack_mapped(
                 map,
                 |h| match self.slot(h.get() as usize) {
-                    Some(slot) => ::od_runtime::__private_v2::first8(|| 64, slot),
+                    Some(slot) => ::od_runtime::__private_v3::first8(|| 64, slot),
                     None => [0; 8],
                 },
             )
@@ -15535,7 +15535,7 @@ PDOMapping=0
     pub mod pdo {
         /// A received PDO was shorter than its mapping.
         #[doc(inline)]
-        pub use ::od_runtime::__private_v2::PdoLengthError as LengthError;
+        pub use ::od_runtime::__private_v3::PdoLengthError as LengthError;
         /// RPDO 1 (received by the device), default mapping of `0x1600`: 16 bits in 2 bytes.
         ///
         /// | bits | object | field |
@@ -15564,7 +15564,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v2::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v3::pdo_word(data, 2)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                 })
@@ -15613,7 +15613,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v2::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v3::pdo_word(data, 2)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                 })
@@ -15639,7 +15639,7 @@ PDOMapping=0
     /// module docs for the arithmetic).
     pub mod units {
         #[doc(inline)]
-        pub use ::od_runtime::__private_v2::Ratio;
+        pub use ::od_runtime::__private_v3::Ratio;
         /// A physical unit.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
         pub enum Unit {
@@ -15786,7 +15786,7 @@ PDOMapping=0
             system: System,
             /// Physical value per raw unit (prepared for fast exact conversions both ways),
             /// and the physical unit, per dimension.
-            factor: [Option<(::od_runtime::__private_v2::Scale, Unit)>; 4],
+            factor: [Option<(::od_runtime::__private_v3::Scale, Unit)>; 4],
             /// Internal value (increments or motor revolutions) per raw unit, per dimension.
             internal: [Option<Ratio>; 4],
         }
@@ -15840,7 +15840,7 @@ PDOMapping=0
                                 .checked_mul(Self::gear_ratio(od)?)
                                 .ok_or(UnitError::Overflow)?;
                             factor[0] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::Millimeter,
                             ));
                             internal[0] = Some(g.reduced());
@@ -15862,7 +15862,7 @@ PDOMapping=0
                                 .checked_mul(Self::gear_ratio(od)?)
                                 .ok_or(UnitError::Overflow)?;
                             factor[1] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::MillimeterPerSecond,
                             ));
                             internal[1] = Some(g.reduced());
@@ -15884,7 +15884,7 @@ PDOMapping=0
                                 .checked_mul(Self::gear_ratio(od)?)
                                 .ok_or(UnitError::Overflow)?;
                             factor[2] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::MillimeterPerSecond2,
                             ));
                             internal[2] = Some(g.reduced());
@@ -15892,7 +15892,7 @@ PDOMapping=0
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[3] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::Millisecond,
                             ));
                         }
@@ -15905,7 +15905,7 @@ PDOMapping=0
                                 .ok_or(UnitError::Overflow)?;
                             let f = f.checked_mul(c).ok_or(UnitError::Overflow)?;
                             factor[0] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::Degree,
                             ));
                         }
@@ -15916,7 +15916,7 @@ PDOMapping=0
                                 .ok_or(UnitError::Overflow)?;
                             let f = f.checked_mul(c).ok_or(UnitError::Overflow)?;
                             factor[1] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::DegreePerSecond,
                             ));
                         }
@@ -15927,14 +15927,14 @@ PDOMapping=0
                                 .ok_or(UnitError::Overflow)?;
                             let f = f.checked_mul(c).ok_or(UnitError::Overflow)?;
                             factor[2] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::DegreePerSecond2,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[3] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::Millisecond,
                             ));
                         }
@@ -15983,7 +15983,7 @@ PDOMapping=0
                 &self,
                 d: Dimension,
                 q: &Quantity,
-            ) -> Result<&::od_runtime::__private_v2::Scale, UnitError> {
+            ) -> Result<&::od_runtime::__private_v3::Scale, UnitError> {
                 match self.factor.get(d.slot()) {
                     Some(Some((f, unit))) if *unit == q.unit => Ok(f),
                     Some(Some((_, unit))) => {

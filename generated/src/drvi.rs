@@ -3101,9 +3101,9 @@ PDOMapping=0
         0x607D, 0x607E, 0x607F, 0x6081, 0x6083, 0x6084, 0x6087, 0x6091, 0x6092, 0x6098,
         0x6099, 0x609A, 0x60FF,
     ];
-    static LOOKUP: ::od_runtime::__private_v2::Lookup = ::od_runtime::__private_v2::Lookup {
-        pages: ::od_runtime::__private_v2::pages(&OBJECTS),
-        bits: &::od_runtime::__private_v2::bits::<8>(&OBJECTS),
+    static LOOKUP: ::od_runtime::__private_v3::Lookup = ::od_runtime::__private_v3::Lookup {
+        pages: ::od_runtime::__private_v3::pages(&OBJECTS),
+        bits: &::od_runtime::__private_v3::bits::<8>(&OBJECTS),
         ranks: &[
             [0, 32, 32, 32],
             [32, 56, 56, 56],
@@ -3134,68 +3134,68 @@ PDOMapping=0
     };
     /// Where a host finds each object's run of entries in one read (1 KB per page of
     /// 256 indices); empty on a microcontroller, which binary-searches `ROWS`.
-    static DIRECT: [u32; ::od_runtime::__private_v2::direct_len(8)] = ::od_runtime::__private_v2::direct(
+    static DIRECT: [u32; ::od_runtime::__private_v3::direct_len(8)] = ::od_runtime::__private_v3::direct(
         &ROWS,
     );
     /// The entry table the device reads, sorted by `(index, sub)`: 8 bytes a row.
     /// [`ENTRIES`] is made from it.
-    pub static ROWS: [::od_runtime::__private_v2::Row; 308] = [
-        ::od_runtime::__private_v2::Row {
+    pub static ROWS: [::od_runtime::__private_v3::Row; 308] = [
+        ::od_runtime::__private_v3::Row {
             index: 0x1000,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, device_type),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(0),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1001,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, error_register),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1002,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_status_register),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3204,289 +3204,289 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_1),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_2),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_3),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_4),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_5),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_6),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_7),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1003,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, pre_defined_error_field_standard_8),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1005,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, cob_id_sync),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(1),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1006,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, communication_cycle_period),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1007,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, synchronous_window_length),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1008,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            slot: ::od_runtime::__private_v2::offset::<
-                ::od_runtime::__private_v2::Bytes<32>,
+            slot: ::od_runtime::__private_v3::offset::<
+                ::od_runtime::__private_v3::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_device_name),
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 Some(2),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1009,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            slot: ::od_runtime::__private_v2::offset::<
-                ::od_runtime::__private_v2::Bytes<32>,
+            slot: ::od_runtime::__private_v3::offset::<
+                ::od_runtime::__private_v3::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_hardware_version),
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 Some(3),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x100A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            slot: ::od_runtime::__private_v2::offset::<
-                ::od_runtime::__private_v2::Bytes<32>,
+            slot: ::od_runtime::__private_v3::offset::<
+                ::od_runtime::__private_v3::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_software_version),
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 Some(4),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x100C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, guard_time),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x100D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, life_time_factor),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1010,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3495,34 +3495,34 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1010,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, store_parameters_save_all),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1011,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3531,170 +3531,170 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1011,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, restore_default_parameters_all),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1014,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, cob_id_emcy),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(6),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1015,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, inhibit_time_emcy),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1017,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, producer_heartbeat_time),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1018,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_number_of_entries),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(7),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1018,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_vendor_id),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(8),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1018,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_product_code),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(9),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1018,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_revision_number),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1018,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_serial_number),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1400,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3704,17 +3704,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(10),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1400,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3723,17 +3723,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(11),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1400,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3742,17 +3742,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1401,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3762,17 +3762,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(10),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1401,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3781,17 +3781,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(13),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1401,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3800,17 +3800,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1402,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3820,17 +3820,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(10),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1402,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3839,17 +3839,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(14),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1402,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3858,17 +3858,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1403,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3878,17 +3878,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(10),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1403,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3897,17 +3897,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(15),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1403,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3916,17 +3916,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1404,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3936,17 +3936,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(10),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1404,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -3955,17 +3955,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(16),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1404,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3974,17 +3974,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1405,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -3994,17 +3994,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(10),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1405,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4013,17 +4013,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(17),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1405,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4032,17 +4032,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1406,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4052,17 +4052,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(10),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1406,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4071,17 +4071,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(17),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1406,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4090,17 +4090,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1407,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4110,17 +4110,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(10),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1407,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4129,17 +4129,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(17),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1407,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4148,17 +4148,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4167,17 +4167,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4186,17 +4186,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(18),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4205,17 +4205,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4224,17 +4224,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4243,17 +4243,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4262,17 +4262,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4281,17 +4281,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4300,17 +4300,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4319,17 +4319,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4338,17 +4338,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4357,17 +4357,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4376,17 +4376,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4395,17 +4395,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4414,17 +4414,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4433,17 +4433,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4452,17 +4452,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4471,17 +4471,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1601,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4490,17 +4490,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4509,17 +4509,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4528,17 +4528,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4547,17 +4547,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4566,17 +4566,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4585,17 +4585,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4604,17 +4604,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4623,17 +4623,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4642,17 +4642,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1602,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4661,17 +4661,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4680,17 +4680,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4699,17 +4699,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4718,17 +4718,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4737,17 +4737,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4756,17 +4756,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4775,17 +4775,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4794,17 +4794,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4813,17 +4813,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1603,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4832,17 +4832,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1604,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -4851,17 +4851,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1604,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4870,17 +4870,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1604,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4889,17 +4889,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1604,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4908,17 +4908,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1604,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4927,17 +4927,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1604,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4946,17 +4946,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1604,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4965,17 +4965,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1604,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -4984,17 +4984,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1604,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5003,17 +5003,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1605,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5022,17 +5022,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1605,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5041,17 +5041,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1605,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5060,17 +5060,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1605,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5079,17 +5079,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1605,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5098,17 +5098,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1605,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5117,17 +5117,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1605,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5136,17 +5136,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1605,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5155,17 +5155,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1605,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5174,17 +5174,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1606,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5193,17 +5193,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1606,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5212,17 +5212,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1606,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5231,17 +5231,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1606,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5250,17 +5250,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1606,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5269,17 +5269,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1606,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5288,17 +5288,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1606,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5307,17 +5307,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1606,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5326,17 +5326,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1606,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5345,17 +5345,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1607,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5364,17 +5364,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1607,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5383,17 +5383,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1607,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5402,17 +5402,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1607,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5421,17 +5421,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1607,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5440,17 +5440,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1607,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5459,17 +5459,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1607,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5478,17 +5478,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1607,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5497,17 +5497,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1607,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5516,17 +5516,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1800,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5536,17 +5536,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(19),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1800,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5556,17 +5556,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(20),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1800,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5575,17 +5575,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1800,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5594,17 +5594,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1800,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5614,17 +5614,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1800,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5633,17 +5633,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(21),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1801,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5653,17 +5653,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(19),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1801,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5673,17 +5673,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(22),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1801,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5692,17 +5692,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1801,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5711,17 +5711,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1801,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5731,17 +5731,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1801,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5750,17 +5750,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1802,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5770,17 +5770,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(19),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1802,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5790,17 +5790,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(23),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1802,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5809,17 +5809,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1802,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5828,17 +5828,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1802,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5848,17 +5848,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1802,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5867,17 +5867,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1803,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5887,17 +5887,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(19),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1803,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -5907,17 +5907,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(24),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1803,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5926,17 +5926,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1803,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5945,17 +5945,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1803,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -5965,17 +5965,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1803,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -5984,17 +5984,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1804,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6004,17 +6004,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(19),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1804,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6024,17 +6024,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(17),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1804,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6043,17 +6043,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1804,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6062,17 +6062,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1804,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6082,17 +6082,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1804,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6101,17 +6101,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1805,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6121,17 +6121,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(19),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1805,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6141,17 +6141,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(17),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1805,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6160,17 +6160,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1805,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6179,17 +6179,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1805,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6199,17 +6199,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1805,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6218,17 +6218,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1806,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6238,17 +6238,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(19),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1806,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6258,17 +6258,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(17),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1806,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6277,17 +6277,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1806,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6296,17 +6296,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1806,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6316,17 +6316,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1806,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6335,17 +6335,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1807,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6355,17 +6355,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(19),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1807,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6375,17 +6375,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(17),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1807,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6394,17 +6394,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1807,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6413,17 +6413,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1807,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6433,17 +6433,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1807,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(
@@ -6452,17 +6452,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6471,17 +6471,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6490,17 +6490,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(25),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6509,17 +6509,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6528,17 +6528,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6547,17 +6547,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6566,17 +6566,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6585,17 +6585,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6604,17 +6604,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6623,17 +6623,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6642,17 +6642,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6661,17 +6661,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6680,17 +6680,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6699,17 +6699,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6718,17 +6718,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6737,17 +6737,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6756,17 +6756,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6775,17 +6775,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6794,17 +6794,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6813,17 +6813,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6832,17 +6832,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6851,17 +6851,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6870,17 +6870,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6889,17 +6889,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6908,17 +6908,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6927,17 +6927,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6946,17 +6946,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A02,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -6965,17 +6965,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -6984,17 +6984,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7003,17 +7003,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7022,17 +7022,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7041,17 +7041,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7060,17 +7060,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7079,17 +7079,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7098,17 +7098,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7117,17 +7117,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A03,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7136,17 +7136,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A04,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7155,17 +7155,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A04,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7174,17 +7174,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A04,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7193,17 +7193,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A04,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7212,17 +7212,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A04,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7231,17 +7231,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A04,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7250,17 +7250,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A04,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7269,17 +7269,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A04,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7288,17 +7288,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A04,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7307,17 +7307,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A05,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7326,17 +7326,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A05,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7345,17 +7345,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A05,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7364,17 +7364,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A05,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7383,17 +7383,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A05,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7402,17 +7402,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A05,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7421,17 +7421,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A05,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7440,17 +7440,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A05,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7459,17 +7459,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A05,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7478,17 +7478,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A06,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7497,17 +7497,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A06,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7516,17 +7516,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A06,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7535,17 +7535,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A06,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7554,17 +7554,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A06,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7573,17 +7573,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A06,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7592,17 +7592,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A06,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7611,17 +7611,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A06,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7630,17 +7630,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A06,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7649,17 +7649,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A07,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7668,17 +7668,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A07,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7687,17 +7687,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A07,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7706,17 +7706,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A07,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7725,17 +7725,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A07,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7744,17 +7744,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A07,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7763,17 +7763,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A07,
             sub: 6,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7782,17 +7782,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A07,
             sub: 7,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7801,17 +7801,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A07,
             sub: 8,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -7820,34 +7820,34 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1F80,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, nmt_startup),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(7),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2001,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7856,136 +7856,136 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(10),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2001,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_converter_numerator),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2001,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_converter_denominator),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2002,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, input_status),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2003,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, output_status),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2004,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_ok),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2006,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, warnings),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2010,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, limits_enable),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(26),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2011,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -7994,102 +7994,102 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(19),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2011,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, pid_parameters_selection),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(27),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2011,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, pid_parameters_kp_position),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2011,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, pid_parameters_kp_speed),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(28),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2011,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, pid_parameters_ki_position),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2011,
             sub: 5,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, pid_parameters_ki_speed),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(29),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2012,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8098,408 +8098,408 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(10),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2012,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_parameters_check),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(30),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2012,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_parameters_check_timeout),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(31),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2013,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_torque_limit),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(32),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2014,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, actuator_type),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2015,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, torque_limit_enable),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(26),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x603F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, error_code),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6040,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, controlword),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6041,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, statusword),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6060,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, modes_of_operation),
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6061,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, modes_of_operation_display),
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6062,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_demand_value),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6064,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_actual_value),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6065,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, following_error_window),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6066,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, following_error_timeout),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x606B,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_demand_value),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x606C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_actual_value),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x606F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_threshold),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6070,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_threshold_time),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6071,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(Dictionary, target_torque),
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 Some(33),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6074,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(Dictionary, torque_demand_value),
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6077,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i16,
             >(
                 ::core::mem::offset_of!(Dictionary, torque_actual_value),
                 ::od_runtime::od::DataType::Integer16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x607A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, target_position),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x607C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, home_offset),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x607D,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8508,153 +8508,153 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(10),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x607D,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, software_position_limit_min),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x607D,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, software_position_limit_max),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x607E,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, polarity),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x607F,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, max_profile_velocity),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(34),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6081,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_velocity),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6083,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_acceleration),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6084,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, profile_deceleration),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6087,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, torque_slope),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6091,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8663,51 +8663,51 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(10),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6091,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, gear_ratio_motor_revolutions),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6091,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, gear_ratio_shaft_revolutions),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6092,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8716,68 +8716,68 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(10),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6092,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_constant_feed),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(21),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6092,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, feed_constant_shaft_revolutions),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6098,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_method),
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 Some(35),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6099,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -8786,75 +8786,75 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(10),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6099,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_speeds_fast),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6099,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_speeds_slow),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x609A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_acceleration),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(36),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x60FF,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, target_velocity),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 None,
@@ -8864,7 +8864,7 @@ PDOMapping=0
     /// Metadata of every entry, sorted by `(index, sub)` (`ObjectDictionary::entries`): made
     /// from [`ROWS`] and [`EXTRAS`] at compile time. A firmware, whose device reads the rows,
     /// does not link it.
-    pub static ENTRIES: [::od_runtime::od::EntryInfo; 308] = ::od_runtime::__private_v2::entries(
+    pub static ENTRIES: [::od_runtime::od::EntryInfo; 308] = ::od_runtime::__private_v3::entries(
         &ROWS,
         &EXTRAS,
     );
@@ -9475,9 +9475,9 @@ PDOMapping=0
         cob_id_sync: u32,
         communication_cycle_period: u32,
         synchronous_window_length: u32,
-        manufacturer_device_name: ::od_runtime::__private_v2::Bytes<32>,
-        manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes<32>,
-        manufacturer_software_version: ::od_runtime::__private_v2::Bytes<32>,
+        manufacturer_device_name: ::od_runtime::__private_v3::Bytes<32>,
+        manufacturer_hardware_version: ::od_runtime::__private_v3::Bytes<32>,
+        manufacturer_software_version: ::od_runtime::__private_v3::Bytes<32>,
         guard_time: u16,
         life_time_factor: u8,
         store_parameters_highest_sub_index_supported: u8,
@@ -9788,13 +9788,13 @@ PDOMapping=0
                 cob_id_sync: 0x80,
                 communication_cycle_period: 0,
                 synchronous_window_length: 0,
-                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
+                manufacturer_device_name: ::od_runtime::__private_v3::Bytes::from_slice(
                     b"DRVI",
                 ),
-                manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes::from_slice(
+                manufacturer_hardware_version: ::od_runtime::__private_v3::Bytes::from_slice(
                     b"1",
                 ),
-                manufacturer_software_version: ::od_runtime::__private_v2::Bytes::from_slice(
+                manufacturer_software_version: ::od_runtime::__private_v3::Bytes::from_slice(
                     b"0",
                 ),
                 guard_time: 0,
@@ -10118,13 +10118,13 @@ PDOMapping=0
                 cob_id_sync: 0,
                 communication_cycle_period: 0,
                 synchronous_window_length: 0,
-                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
+                manufacturer_device_name: ::od_runtime::__private_v3::Bytes::from_slice(
                     &[],
                 ),
-                manufacturer_hardware_version: ::od_runtime::__private_v2::Bytes::from_slice(
+                manufacturer_hardware_version: ::od_runtime::__private_v3::Bytes::from_slice(
                     &[],
                 ),
-                manufacturer_software_version: ::od_runtime::__private_v2::Bytes::from_slice(
+                manufacturer_software_version: ::od_runtime::__private_v3::Bytes::from_slice(
                     &[],
                 ),
                 guard_time: 0,
@@ -10426,19 +10426,19 @@ PDOMapping=0
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::lookup(&LOOKUP, &DIRECT, &ROWS, index, sub)
+            ::od_runtime::__private_v3::lookup(&LOOKUP, &DIRECT, &ROWS, index, sub)
         }
         /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
-        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v2::Slot<'_>> {
-            ::od_runtime::__private_v2::slot(self, pos)
+        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v3::Slot<'_>> {
+            ::od_runtime::__private_v3::slot(self, pos)
         }
         #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,
-        ) -> Option<::od_runtime::__private_v2::SlotMut<'_>> {
-            ::od_runtime::__private_v2::slot_mut(self, pos)
+        ) -> Option<::od_runtime::__private_v3::SlotMut<'_>> {
+            ::od_runtime::__private_v3::slot_mut(self, pos)
         }
         /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
         /// of `read_handle`.
@@ -10446,9 +10446,9 @@ PDOMapping=0
         fn read_at(&self, pos: usize) -> [u8; 8] {
             match self.slot(pos) {
                 Some(slot) => {
-                    ::od_runtime::__private_v2::first8(
+                    ::od_runtime::__private_v3::first8(
                         || {
-                            ::od_runtime::__private_v2::info_at::<Self>(pos)
+                            ::od_runtime::__private_v3::info_at::<Self>(pos)
                                 .map_or(0, |e| e.bits())
                         },
                         slot,
@@ -10469,11 +10469,11 @@ PDOMapping=0
         ) -> Result<(), ::od_runtime::od::AbortCode> {
             let (real_low, real_high) = (None, None);
             match (
-                ::od_runtime::__private_v2::info_at::<Self>(pos),
+                ::od_runtime::__private_v3::info_at::<Self>(pos),
                 self.slot_mut(pos),
             ) {
                 (Ok(info), Some(slot)) => {
-                    ::od_runtime::__private_v2::write(
+                    ::od_runtime::__private_v3::write(
                         &info,
                         slot,
                         data,
@@ -10492,7 +10492,7 @@ PDOMapping=0
             sub: u8,
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::bus_read(self, index, sub, buf)
+            ::od_runtime::__private_v3::bus_read(self, index, sub, buf)
         }
         /// Writes like an SDO download: as [`write`](::od_runtime::od::ObjectDictionary::write),
         /// but refuses read-only and constant entries with `READ_ONLY`.
@@ -10502,7 +10502,7 @@ PDOMapping=0
             sub: u8,
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::bus_write(self, index, sub, data)
+            ::od_runtime::__private_v3::bus_write(self, index, sub, data)
         }
         /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
         /// runtime's rules ([`check_mapping`](::od_runtime::pdo::check_mapping));
@@ -10512,7 +10512,7 @@ PDOMapping=0
         pub fn check_rpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::check_mapping(
+            ::od_runtime::__private_v3::check_mapping(
                 &EXTRAS,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
@@ -10523,7 +10523,7 @@ PDOMapping=0
         pub fn check_tpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::check_mapping(
+            ::od_runtime::__private_v3::check_mapping(
                 &EXTRAS,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
@@ -15673,9 +15673,9 @@ PDOMapping=0
             Ok(())
         }
     }
-    unsafe impl ::od_runtime::__private_v2::Table for Dictionary {
+    unsafe impl ::od_runtime::__private_v3::Table for Dictionary {
         #[inline(always)]
-        fn rows() -> &'static [::od_runtime::__private_v2::Row] {
+        fn rows() -> &'static [::od_runtime::__private_v3::Row] {
             &ROWS
         }
         #[inline(always)]
@@ -15714,7 +15714,7 @@ PDOMapping=0
             sub: u8,
         ) -> Result<::od_runtime::od::EntryInfo, ::od_runtime::od::AbortCode> {
             Self::position(index, sub)
-                .and_then(::od_runtime::__private_v2::info_at::<Self>)
+                .and_then(::od_runtime::__private_v3::info_at::<Self>)
         }
         #[inline]
         fn entry_count(&self) -> usize {
@@ -15722,7 +15722,7 @@ PDOMapping=0
         }
         #[inline]
         fn entry_at(&self, pos: usize) -> Option<::od_runtime::od::EntryInfo> {
-            ::od_runtime::__private_v2::info_at::<Self>(pos).ok()
+            ::od_runtime::__private_v3::info_at::<Self>(pos).ok()
         }
         fn read(
             &self,
@@ -15731,9 +15731,9 @@ PDOMapping=0
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
             let pos = Self::position(index, sub)?;
-            match (::od_runtime::__private_v2::info_at::<Self>(pos), self.slot(pos)) {
+            match (::od_runtime::__private_v3::info_at::<Self>(pos), self.slot(pos)) {
                 (Ok(info), Some(slot)) => {
-                    ::od_runtime::__private_v2::read(&info, slot, buf)
+                    ::od_runtime::__private_v3::read(&info, slot, buf)
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -15750,7 +15750,7 @@ PDOMapping=0
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
             for (pos, row) in ROWS.iter().enumerate() {
                 if area.contains(row.index) && let Some(slot) = self.slot_mut(pos) {
-                    ::od_runtime::__private_v2::set_default(
+                    ::od_runtime::__private_v3::set_default(
                         &row.info(&EXTRAS),
                         slot,
                         node_id,
@@ -15770,10 +15770,10 @@ PDOMapping=0
         }
         #[inline]
         fn read_mapped(&self, map: &[::od_runtime::od::MappedHandle]) -> u64 {
-            ::od_runtime::__private_v2::pack_mapped(
+            ::od_runtime::__private_v3::pack_mapped(
                 map,
                 |h| match self.slot(h.get() as usize) {
-                    Some(slot) => ::od_runtime::__private_v2::first8(|| 64, slot),
+                    Some(slot) => ::od_runtime::__private_v3::first8(|| 64, slot),
                     None => [0; 8],
                 },
             )
@@ -15969,7 +15969,7 @@ PDOMapping=0
     pub mod pdo {
         /// A received PDO was shorter than its mapping.
         #[doc(inline)]
-        pub use ::od_runtime::__private_v2::PdoLengthError as LengthError;
+        pub use ::od_runtime::__private_v3::PdoLengthError as LengthError;
         /// RPDO 1 (received by the device), default mapping of `0x1600`: 16 bits in 2 bytes.
         ///
         /// | bits | object | field |
@@ -15998,7 +15998,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v2::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v3::pdo_word(data, 2)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                 })
@@ -16047,7 +16047,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v2::pdo_word(data, 2)?;
+                let w = ::od_runtime::__private_v3::pdo_word(data, 2)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                 })
@@ -16073,7 +16073,7 @@ PDOMapping=0
     /// module docs for the arithmetic).
     pub mod units {
         #[doc(inline)]
-        pub use ::od_runtime::__private_v2::Ratio;
+        pub use ::od_runtime::__private_v3::Ratio;
         /// A physical unit.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
         pub enum Unit {
@@ -16235,7 +16235,7 @@ PDOMapping=0
             system: System,
             /// Physical value per raw unit (prepared for fast exact conversions both ways),
             /// and the physical unit, per dimension.
-            factor: [Option<(::od_runtime::__private_v2::Scale, Unit)>; 6],
+            factor: [Option<(::od_runtime::__private_v3::Scale, Unit)>; 6],
             /// Internal value (increments or motor revolutions) per raw unit, per dimension.
             internal: [Option<Ratio>; 6],
         }
@@ -16279,7 +16279,7 @@ PDOMapping=0
                                 .ok_or(UnitError::Overflow)?;
                             let f = f.checked_mul(c).ok_or(UnitError::Overflow)?;
                             factor[0] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::Degree,
                             ));
                         }
@@ -16290,7 +16290,7 @@ PDOMapping=0
                                 .ok_or(UnitError::Overflow)?;
                             let f = f.checked_mul(c).ok_or(UnitError::Overflow)?;
                             factor[1] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::Rpm,
                             ));
                         }
@@ -16301,28 +16301,28 @@ PDOMapping=0
                                 .ok_or(UnitError::Overflow)?;
                             let f = f.checked_mul(c).ok_or(UnitError::Overflow)?;
                             factor[2] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::RpmPerSecond,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[3] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::MilliAmpere,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[4] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::MilliAmperePerSecond,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[5] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::Millisecond,
                             ));
                         }
@@ -16345,7 +16345,7 @@ PDOMapping=0
                                 .checked_mul(Self::gear_ratio(od)?)
                                 .ok_or(UnitError::Overflow)?;
                             factor[0] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::Millimeter,
                             ));
                             internal[0] = Some(g.reduced());
@@ -16367,7 +16367,7 @@ PDOMapping=0
                                 .checked_mul(Self::gear_ratio(od)?)
                                 .ok_or(UnitError::Overflow)?;
                             factor[1] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::MillimeterPerSecond,
                             ));
                             internal[1] = Some(g.reduced());
@@ -16392,7 +16392,7 @@ PDOMapping=0
                                 .checked_mul(Self::gear_ratio(od)?)
                                 .ok_or(UnitError::Overflow)?;
                             factor[2] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::MillimeterPerSecond2,
                             ));
                             internal[2] = Some(g.reduced());
@@ -16400,21 +16400,21 @@ PDOMapping=0
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[3] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::MilliAmpere,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[4] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::MilliAmperePerSecond,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[5] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::Millisecond,
                             ));
                         }
@@ -16463,7 +16463,7 @@ PDOMapping=0
                 &self,
                 d: Dimension,
                 q: &Quantity,
-            ) -> Result<&::od_runtime::__private_v2::Scale, UnitError> {
+            ) -> Result<&::od_runtime::__private_v3::Scale, UnitError> {
                 match self.factor.get(d.slot()) {
                     Some(Some((f, unit))) if *unit == q.unit => Ok(f),
                     Some(Some((_, unit))) => {

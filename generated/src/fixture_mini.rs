@@ -571,9 +571,9 @@ PDOMapping=0
         0x2001, 0x2002, 0x2003, 0x2004, 0x2005, 0x2006, 0x2007, 0x6040, 0x6041, 0x6060,
         0x6061, 0x6064, 0x606C, 0x607A, 0x6099,
     ];
-    static LOOKUP: ::od_runtime::__private_v2::Lookup = ::od_runtime::__private_v2::Lookup {
-        pages: ::od_runtime::__private_v2::pages(&OBJECTS),
-        bits: &::od_runtime::__private_v2::bits::<7>(&OBJECTS),
+    static LOOKUP: ::od_runtime::__private_v3::Lookup = ::od_runtime::__private_v3::Lookup {
+        pages: ::od_runtime::__private_v3::pages(&OBJECTS),
+        bits: &::od_runtime::__private_v3::bits::<7>(&OBJECTS),
         ranks: &[
             [0, 9, 9, 9],
             [9, 12, 12, 12],
@@ -599,85 +599,85 @@ PDOMapping=0
     };
     /// Where a host finds each object's run of entries in one read (1 KB per page of
     /// 256 indices); empty on a microcontroller, which binary-searches `ROWS`.
-    static DIRECT: [u32; ::od_runtime::__private_v2::direct_len(7)] = ::od_runtime::__private_v2::direct(
+    static DIRECT: [u32; ::od_runtime::__private_v3::direct_len(7)] = ::od_runtime::__private_v3::direct(
         &ROWS,
     );
     /// The entry table the device reads, sorted by `(index, sub)`: 8 bytes a row.
     /// [`ENTRIES`] is made from it.
-    pub static ROWS: [::od_runtime::__private_v2::Row; 47] = [
-        ::od_runtime::__private_v2::Row {
+    pub static ROWS: [::od_runtime::__private_v3::Row; 47] = [
+        ::od_runtime::__private_v3::Row {
             index: 0x1000,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, device_type),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(0),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1001,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, error_register),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1008,
             sub: 0,
             data_type: ::od_runtime::od::DataType::VisibleString,
-            slot: ::od_runtime::__private_v2::offset::<
-                ::od_runtime::__private_v2::Bytes<32>,
+            slot: ::od_runtime::__private_v3::offset::<
+                ::od_runtime::__private_v3::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, manufacturer_device_name),
                 ::od_runtime::od::DataType::VisibleString,
                 256,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 Some(1),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1017,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, producer_heartbeat_time),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1018,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -686,85 +686,85 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(2),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1018,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_vendor_id),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(3),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1018,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_product_code),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(4),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1018,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_revision_number),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(4),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1018,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, identity_object_serial_number),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1400,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -774,17 +774,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1400,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -793,17 +793,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(6),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1400,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -812,17 +812,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(7),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -831,17 +831,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(8),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -850,17 +850,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(9),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -869,17 +869,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(10),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1600,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -888,17 +888,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(11),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1800,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -908,17 +908,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Const,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1800,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -927,17 +927,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(12),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1800,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -946,17 +946,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(7),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -965,17 +965,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(2),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -984,17 +984,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(13),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -1003,17 +1003,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(14),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -1022,17 +1022,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(15),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A00,
             sub: 4,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -1041,17 +1041,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(16),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(
@@ -1060,17 +1060,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -1079,17 +1079,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(17),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x1A01,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -1098,323 +1098,323 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(18),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2001,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer24,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, signed_24),
                 ::od_runtime::od::DataType::Integer24,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rwr,
                 true,
                 Some(19),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2002,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Boolean,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 bool,
             >(
                 ::core::mem::offset_of!(Dictionary, flag),
                 ::od_runtime::od::DataType::Boolean,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rwr,
                 true,
                 Some(4),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2003,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Real32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 f32,
             >(
                 ::core::mem::offset_of!(Dictionary, gain),
                 ::od_runtime::od::DataType::Real32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(20),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2004,
             sub: 0,
             data_type: ::od_runtime::od::DataType::OctetString,
-            slot: ::od_runtime::__private_v2::offset::<
-                ::od_runtime::__private_v2::Bytes<32>,
+            slot: ::od_runtime::__private_v3::offset::<
+                ::od_runtime::__private_v3::Bytes<32>,
             >(
                 ::core::mem::offset_of!(Dictionary, blob),
                 ::od_runtime::od::DataType::OctetString,
                 256,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(21),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2005,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned40,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u64,
             >(
                 ::core::mem::offset_of!(Dictionary, counter),
                 ::od_runtime::od::DataType::Unsigned40,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(22),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2006,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, gains_number_of_entries),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(8),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2006,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, gains_type),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(4),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2006,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, gains_2_2),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(23),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2006,
             sub: 3,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, gains_2_3),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(8),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x2007,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_window),
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(24),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6040,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, controlword),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rww,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6041,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned16,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u16,
             >(
                 ::core::mem::offset_of!(Dictionary, statusword),
                 ::od_runtime::od::DataType::Unsigned16,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6060,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, modes_of_operation),
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rww,
                 true,
                 Some(25),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6061,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i8,
             >(
                 ::core::mem::offset_of!(Dictionary, modes_of_operation_display),
                 ::od_runtime::od::DataType::Integer8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6064,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, position_actual_value),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x606C,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, velocity_actual_value),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 true,
                 None,
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x607A,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Integer32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 i32,
             >(
                 ::core::mem::offset_of!(Dictionary, target_position),
                 ::od_runtime::od::DataType::Integer32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rww,
                 true,
                 Some(26),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6099,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, homing_speeds_number_of_entries),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Ro,
                 false,
                 Some(5),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6099,
             sub: 1,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -1423,17 +1423,17 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 Some(27),
             ),
         },
-        ::od_runtime::__private_v2::Row {
+        ::od_runtime::__private_v3::Row {
             index: 0x6099,
             sub: 2,
             data_type: ::od_runtime::od::DataType::Unsigned32,
-            slot: ::od_runtime::__private_v2::offset::<
+            slot: ::od_runtime::__private_v3::offset::<
                 u32,
             >(
                 ::core::mem::offset_of!(
@@ -1442,7 +1442,7 @@ PDOMapping=0
                 ::od_runtime::od::DataType::Unsigned32,
                 0,
             ),
-            meta: ::od_runtime::__private_v2::meta(
+            meta: ::od_runtime::__private_v3::meta(
                 ::od_runtime::od::Access::Rw,
                 true,
                 Some(28),
@@ -1452,7 +1452,7 @@ PDOMapping=0
     /// Metadata of every entry, sorted by `(index, sub)` (`ObjectDictionary::entries`): made
     /// from [`ROWS`] and [`EXTRAS`] at compile time. A firmware, whose device reads the rows,
     /// does not link it.
-    pub static ENTRIES: [::od_runtime::od::EntryInfo; 47] = ::od_runtime::__private_v2::entries(
+    pub static ENTRIES: [::od_runtime::od::EntryInfo; 47] = ::od_runtime::__private_v3::entries(
         &ROWS,
         &EXTRAS,
     );
@@ -1733,7 +1733,7 @@ PDOMapping=0
     pub struct Dictionary {
         device_type: u32,
         error_register: u8,
-        manufacturer_device_name: ::od_runtime::__private_v2::Bytes<32>,
+        manufacturer_device_name: ::od_runtime::__private_v3::Bytes<32>,
         producer_heartbeat_time: u16,
         identity_object_highest_sub_index_supported: u8,
         identity_object_vendor_id: u32,
@@ -1761,7 +1761,7 @@ PDOMapping=0
         signed_24: i32,
         flag: bool,
         gain: f32,
-        blob: ::od_runtime::__private_v2::Bytes<32>,
+        blob: ::od_runtime::__private_v3::Bytes<32>,
         counter: u64,
         gains_number_of_entries: u8,
         gains_type: u16,
@@ -1785,7 +1785,7 @@ PDOMapping=0
             Dictionary {
                 device_type: 0x20192,
                 error_register: 0,
-                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
+                manufacturer_device_name: ::od_runtime::__private_v3::Bytes::from_slice(
                     b"Mini drive",
                 ),
                 producer_heartbeat_time: 0,
@@ -1815,7 +1815,7 @@ PDOMapping=0
                 signed_24: -5,
                 flag: true,
                 gain: 1.5,
-                blob: ::od_runtime::__private_v2::Bytes::from_slice(b"\x01\x02"),
+                blob: ::od_runtime::__private_v3::Bytes::from_slice(b"\x01\x02"),
                 counter: 0x123456789,
                 gains_number_of_entries: 3,
                 gains_type: 1,
@@ -1841,7 +1841,7 @@ PDOMapping=0
             Dictionary {
                 device_type: 0,
                 error_register: 0,
-                manufacturer_device_name: ::od_runtime::__private_v2::Bytes::from_slice(
+                manufacturer_device_name: ::od_runtime::__private_v3::Bytes::from_slice(
                     &[],
                 ),
                 producer_heartbeat_time: 0,
@@ -1871,7 +1871,7 @@ PDOMapping=0
                 signed_24: 0,
                 flag: false,
                 gain: 0.0,
-                blob: ::od_runtime::__private_v2::Bytes::from_slice(&[]),
+                blob: ::od_runtime::__private_v3::Bytes::from_slice(&[]),
                 counter: 0,
                 gains_number_of_entries: 0,
                 gains_type: 0,
@@ -1897,19 +1897,19 @@ PDOMapping=0
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::lookup(&LOOKUP, &DIRECT, &ROWS, index, sub)
+            ::od_runtime::__private_v3::lookup(&LOOKUP, &DIRECT, &ROWS, index, sub)
         }
         /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
-        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v2::Slot<'_>> {
-            ::od_runtime::__private_v2::slot(self, pos)
+        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v3::Slot<'_>> {
+            ::od_runtime::__private_v3::slot(self, pos)
         }
         #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,
-        ) -> Option<::od_runtime::__private_v2::SlotMut<'_>> {
-            ::od_runtime::__private_v2::slot_mut(self, pos)
+        ) -> Option<::od_runtime::__private_v3::SlotMut<'_>> {
+            ::od_runtime::__private_v3::slot_mut(self, pos)
         }
         /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
         /// of `read_handle`.
@@ -1917,9 +1917,9 @@ PDOMapping=0
         fn read_at(&self, pos: usize) -> [u8; 8] {
             match self.slot(pos) {
                 Some(slot) => {
-                    ::od_runtime::__private_v2::first8(
+                    ::od_runtime::__private_v3::first8(
                         || {
-                            ::od_runtime::__private_v2::info_at::<Self>(pos)
+                            ::od_runtime::__private_v3::info_at::<Self>(pos)
                                 .map_or(0, |e| e.bits())
                         },
                         slot,
@@ -1943,11 +1943,11 @@ PDOMapping=0
                 _ => (None, None),
             };
             match (
-                ::od_runtime::__private_v2::info_at::<Self>(pos),
+                ::od_runtime::__private_v3::info_at::<Self>(pos),
                 self.slot_mut(pos),
             ) {
                 (Ok(info), Some(slot)) => {
-                    ::od_runtime::__private_v2::write(
+                    ::od_runtime::__private_v3::write(
                         &info,
                         slot,
                         data,
@@ -1966,7 +1966,7 @@ PDOMapping=0
             sub: u8,
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::bus_read(self, index, sub, buf)
+            ::od_runtime::__private_v3::bus_read(self, index, sub, buf)
         }
         /// Writes like an SDO download: as [`write`](::od_runtime::od::ObjectDictionary::write),
         /// but refuses read-only and constant entries with `READ_ONLY`.
@@ -1976,7 +1976,7 @@ PDOMapping=0
             sub: u8,
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::bus_write(self, index, sub, data)
+            ::od_runtime::__private_v3::bus_write(self, index, sub, data)
         }
         /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
         /// runtime's rules ([`check_mapping`](::od_runtime::pdo::check_mapping));
@@ -1986,7 +1986,7 @@ PDOMapping=0
         pub fn check_rpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::check_mapping(
+            ::od_runtime::__private_v3::check_mapping(
                 &EXTRAS,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
@@ -1997,7 +1997,7 @@ PDOMapping=0
         pub fn check_tpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v2::check_mapping(
+            ::od_runtime::__private_v3::check_mapping(
                 &EXTRAS,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
@@ -2790,9 +2790,9 @@ PDOMapping=0
             Ok(())
         }
     }
-    unsafe impl ::od_runtime::__private_v2::Table for Dictionary {
+    unsafe impl ::od_runtime::__private_v3::Table for Dictionary {
         #[inline(always)]
-        fn rows() -> &'static [::od_runtime::__private_v2::Row] {
+        fn rows() -> &'static [::od_runtime::__private_v3::Row] {
             &ROWS
         }
         #[inline(always)]
@@ -2831,7 +2831,7 @@ PDOMapping=0
             sub: u8,
         ) -> Result<::od_runtime::od::EntryInfo, ::od_runtime::od::AbortCode> {
             Self::position(index, sub)
-                .and_then(::od_runtime::__private_v2::info_at::<Self>)
+                .and_then(::od_runtime::__private_v3::info_at::<Self>)
         }
         #[inline]
         fn entry_count(&self) -> usize {
@@ -2839,7 +2839,7 @@ PDOMapping=0
         }
         #[inline]
         fn entry_at(&self, pos: usize) -> Option<::od_runtime::od::EntryInfo> {
-            ::od_runtime::__private_v2::info_at::<Self>(pos).ok()
+            ::od_runtime::__private_v3::info_at::<Self>(pos).ok()
         }
         fn read(
             &self,
@@ -2848,9 +2848,9 @@ PDOMapping=0
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
             let pos = Self::position(index, sub)?;
-            match (::od_runtime::__private_v2::info_at::<Self>(pos), self.slot(pos)) {
+            match (::od_runtime::__private_v3::info_at::<Self>(pos), self.slot(pos)) {
                 (Ok(info), Some(slot)) => {
-                    ::od_runtime::__private_v2::read(&info, slot, buf)
+                    ::od_runtime::__private_v3::read(&info, slot, buf)
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -2867,7 +2867,7 @@ PDOMapping=0
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
             for (pos, row) in ROWS.iter().enumerate() {
                 if area.contains(row.index) && let Some(slot) = self.slot_mut(pos) {
-                    ::od_runtime::__private_v2::set_default(
+                    ::od_runtime::__private_v3::set_default(
                         &row.info(&EXTRAS),
                         slot,
                         node_id,
@@ -2887,10 +2887,10 @@ PDOMapping=0
         }
         #[inline]
         fn read_mapped(&self, map: &[::od_runtime::od::MappedHandle]) -> u64 {
-            ::od_runtime::__private_v2::pack_mapped(
+            ::od_runtime::__private_v3::pack_mapped(
                 map,
                 |h| match self.slot(h.get() as usize) {
-                    Some(slot) => ::od_runtime::__private_v2::first8(|| 64, slot),
+                    Some(slot) => ::od_runtime::__private_v3::first8(|| 64, slot),
                     None => [0; 8],
                 },
             )
@@ -3008,7 +3008,7 @@ PDOMapping=0
     pub mod pdo {
         /// A received PDO was shorter than its mapping.
         #[doc(inline)]
-        pub use ::od_runtime::__private_v2::PdoLengthError as LengthError;
+        pub use ::od_runtime::__private_v3::PdoLengthError as LengthError;
         /// RPDO 1 (received by the device), default mapping of `0x1600`: 32 bits in 4 bytes.
         ///
         /// | bits | object | field |
@@ -3042,7 +3042,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v2::pdo_word(data, 4)?;
+                let w = ::od_runtime::__private_v3::pdo_word(data, 4)?;
                 Ok(Self {
                     controlword: (w & 0xFFFF) as u16,
                     modes_of_operation: (((((w >> 24) & 0xFF) << 56) as i64) >> 56) as i8,
@@ -3108,7 +3108,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v2::pdo_word(data, 7)?;
+                let w = ::od_runtime::__private_v3::pdo_word(data, 7)?;
                 Ok(Self {
                     statusword: (w & 0xFFFF) as u16,
                     modes_of_operation_display: (((((w >> 16) & 0xFF) << 56) as i64)
@@ -3171,7 +3171,7 @@ PDOMapping=0
             /// error.
             #[inline]
             pub fn unpack(data: &[u8]) -> Result<Self, LengthError> {
-                let w = ::od_runtime::__private_v2::pdo_word(data, 8)?;
+                let w = ::od_runtime::__private_v3::pdo_word(data, 8)?;
                 Ok(Self {
                     position_actual_value: ((((w & 0xFFFFFFFF) << 32) as i64) >> 32)
                         as i32,
@@ -3201,7 +3201,7 @@ PDOMapping=0
     /// module docs for the arithmetic).
     pub mod units {
         #[doc(inline)]
-        pub use ::od_runtime::__private_v2::Ratio;
+        pub use ::od_runtime::__private_v3::Ratio;
         /// A physical unit.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
         pub enum Unit {
@@ -3353,7 +3353,7 @@ PDOMapping=0
             system: System,
             /// Physical value per raw unit (prepared for fast exact conversions both ways),
             /// and the physical unit, per dimension.
-            factor: [Option<(::od_runtime::__private_v2::Scale, Unit)>; 7],
+            factor: [Option<(::od_runtime::__private_v3::Scale, Unit)>; 7],
             /// Internal value (increments or motor revolutions) per raw unit, per dimension.
             internal: [Option<Ratio>; 7],
         }
@@ -3393,49 +3393,49 @@ PDOMapping=0
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[0] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::UserUnit,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[1] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::UserUnitPerSecond,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[2] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::UserUnitPerSecond2,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[3] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::PermilleRatedTorque,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[4] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::PermilleRatedCurrent,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[5] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::PermilleRatedTorquePerSecond,
                             ));
                         }
                         {
                             let f = Ratio::new(1, 1).ok_or(UnitError::Overflow)?;
                             factor[6] = Some((
-                                ::od_runtime::__private_v2::Scale::new(f),
+                                ::od_runtime::__private_v3::Scale::new(f),
                                 Unit::Millisecond,
                             ));
                         }
@@ -3484,7 +3484,7 @@ PDOMapping=0
                 &self,
                 d: Dimension,
                 q: &Quantity,
-            ) -> Result<&::od_runtime::__private_v2::Scale, UnitError> {
+            ) -> Result<&::od_runtime::__private_v3::Scale, UnitError> {
                 match self.factor.get(d.slot()) {
                     Some(Some((f, unit))) if *unit == q.unit => Ok(f),
                     Some(Some((_, unit))) => {

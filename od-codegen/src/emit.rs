@@ -299,7 +299,7 @@ pub(crate) fn tables(
     // Each distinct limits and extras value once; entries point at theirs.
     let (limits, limits_of) = dedup(plan.entries.iter().map(limits_tokens));
     let (extras, extras_of) = dedup(plan.entries.iter().zip(&limits_of).map(|(e, l)| extras_tokens(e, *l)));
-    if extras.len() > od_runtime::__private_v2::MAX_EXTRAS {
+    if extras.len() > od_runtime::__private_v3::MAX_EXTRAS {
         sink.general(
             eds::diag::Severity::Error,
             crate::diag::TOO_MANY_OBJECTS,
@@ -307,7 +307,7 @@ pub(crate) fn tables(
                 "the device's entries have {} distinct capacities, defaults and limits, more than the {} \
                  the generated entry table can number",
                 extras.len(),
-                od_runtime::__private_v2::MAX_EXTRAS
+                od_runtime::__private_v3::MAX_EXTRAS
             ),
         );
     }

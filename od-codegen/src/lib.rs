@@ -51,7 +51,7 @@
 //! compiles in `#![no_std]` crates and never allocates. The code is data-driven: the per-entry
 //! parts are tables, field declarations, inline accessors and two `match`es handing out field
 //! references; everything else is generic code in od-runtime's hidden, versioned support module
-//! `::od_runtime::__private_v2` ([`RUNTIME_PRIVATE`]). Code generated against another version
+//! `::od_runtime::__private_v3` ([`RUNTIME_PRIVATE`]). Code generated against another version
 //! of that module does not compile, with an error naming the module it expected: regenerate it.
 //!
 //! # Storage types

@@ -1,7 +1,7 @@
 //! The lookup tables of a generated dictionary: `(index, sub)` → position in `ROWS` (and `ENTRIES`).
 //!
 //! The generator computes the tables the runtime's `Lookup` walks (see
-//! `od_runtime::__private_v2::Lookup`): a page per high byte of the index, a 256-bit set per
+//! `od_runtime::__private_v3::Lookup`): a page per high byte of the index, a 256-bit set per
 //! page with the rank of each 64-bit word, then the sub-index within the object's run of
 //! entries. Building them here, once, keeps the lookup free of searches: a few table reads
 //! and a bit count, and for the rare object whose sub-indices have gaps, a binary search of
@@ -123,7 +123,7 @@ pub(crate) fn tokens(keys: &[(u16, u8)]) -> Option<TokenStream> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use od_runtime::__private_v2::{
+    use od_runtime::__private_v3::{
         Lookup, Row, direct, lookup as runtime_lookup, meta, position as compact, position_direct,
     };
     use od_runtime::od::{AbortCode, Access, DataType};
@@ -161,7 +161,7 @@ mod tests {
         let tables = compact_tables(keys);
         // The largest table there is, cut to the pages this one has (as `direct_len` sizes it).
         let all = Box::new(direct::<{ MAX_PAGES * 256 }>(tables.entries));
-        let n = od_runtime::__private_v2::direct_len(tables.bits.len());
+        let n = od_runtime::__private_v3::direct_len(tables.bits.len());
         assert!(all[n..].iter().all(|d| *d == 0));
         Both { tables, direct: leak(all[..n].to_vec()) }
     }
@@ -171,9 +171,9 @@ mod tests {
         let mut objects: Vec<u16> = keys.iter().map(|k| k.0).collect();
         objects.dedup();
         let pages: [u8; 256] = t.pages.clone().try_into().unwrap();
-        assert_eq!(od_runtime::__private_v2::pages(&objects), pages);
+        assert_eq!(od_runtime::__private_v3::pages(&objects), pages);
         // The largest page count there is; the generator sizes the arrays exactly.
-        let bits = od_runtime::__private_v2::bits::<MAX_PAGES>(&objects);
+        let bits = od_runtime::__private_v3::bits::<MAX_PAGES>(&objects);
         assert_eq!(&bits[..t.bits.len()], &t.bits[..]);
         assert!(bits[t.bits.len()..].iter().all(|b| *b == [0; 4]));
         let entries = keys.iter().map(|&(index, sub)| Row {

@@ -148,7 +148,7 @@ fn expansion_snapshot() {
             1 "COB-ID used by TPDO": u32, rw, default = NODEID + 0x180;
         }
     });
-    // The generic support code lives in od-runtime (`::od_runtime::__private_v2`), so the
+    // The generic support code lives in od-runtime (`::od_runtime::__private_v3`), so the
     // expansion is exactly what this dictionary made.
     let file: syn::File = syn::parse2(e.tokens).expect("generated code parses");
     assert!(!quote! { #file }.to_string().contains("__rt"), "no per-dictionary support module");

@@ -17,7 +17,7 @@
 
 use std::marker::PhantomData;
 
-use od_runtime::__private_v2::Ratio;
+use od_runtime::__private_v3::Ratio;
 use od_runtime::od::AbortCode;
 use od_runtime::pdo::Direction;
 pub use od_sidecar::{Dimension, Unit};

@@ -26,8 +26,8 @@
 #![deny(missing_docs)]
 
 #[doc(hidden)]
-#[path = "private_v2.rs"]
-pub mod __private_v2; // support for generated code: not public API (see the module docs)
+#[path = "private_v3.rs"]
+pub mod __private_v3; // support for generated code: not public API (see the module docs)
 #[cfg(feature = "embedded-can")]
 pub mod can;
 pub mod cia402;

@@ -78,7 +78,7 @@ macro_rules! device_tests {
                         };
                         assert_eq!(Dictionary::position(index, sub), want, "0x{index:04X} sub {sub}");
                         // A microcontroller's lookup (no direct table): a binary search.
-                        let sorted = od_runtime::__private_v2::position_sorted(&ROWS, index, sub);
+                        let sorted = od_runtime::__private_v3::position_sorted(&ROWS, index, sub);
                         assert_eq!(sorted, want, "0x{index:04X} sub {sub}, binary search");
                         assert_eq!(od.info(index, sub).map(|e| (e.index, e.sub)), want.map(|_| (index, sub)));
                         // What the device reads (decoded from ROWS) is the public table's row.

@@ -1,15 +1,15 @@
 //! The versioning invariant: generated code names od-runtime's support module by its versioned
-//! absolute path (`::od_runtime::__private_v2::…`), so code and runtime from different interface
+//! absolute path (`::od_runtime::__private_v3::…`), so code and runtime from different interface
 //! versions do not compile together, and the error names the module the code expected.
 //!
 //! Two compile-fail cases (trybuild, `tests/stale/*.rs` with their `.stderr`), both made from
 //! the code this generator writes for a one-entry device:
 //!
-//! * `older_generator.rs`: code written against an earlier interface (`__private_v1`), compiled
-//!   with today's runtime: "cannot find `__private_v1` in `od_runtime`".
+//! * `older_generator.rs`: code written against an earlier interface (`__private_v2`), compiled
+//!   with today's runtime: "cannot find `__private_v2` in `od_runtime`".
 //! * `newer_runtime.rs`: today's code, compiled with a runtime whose interface moved on to
-//!   `__private_v3` (simulated: the file names itself `od_runtime`, re-exports the real runtime's
-//!   public modules and offers only `__private_v3`): "cannot find `__private_v2` in
+//!   `__private_v4` (simulated: the file names itself `od_runtime`, re-exports the real runtime's
+//!   public modules and offers only `__private_v4`): "cannot find `__private_v3` in
 //!   `od_runtime`".
 //!
 //! The fixtures are checked in so trybuild can compare the compiler's output; a test keeps
@@ -33,13 +33,13 @@ fn tiny() -> String {
 fn older_generator() -> String {
     format!(
         "//! Code generated against the support module of an earlier interface version.\n\n{}\nfn main() {{}}\n",
-        tiny().replace(RUNTIME_PRIVATE, "__private_v1")
+        tiny().replace(RUNTIME_PRIVATE, "__private_v2")
     )
 }
 
 fn newer_runtime() -> String {
     format!(
-        "//! Today's generated code with a runtime whose support module moved on to `__private_v3`.\n\
+        "//! Today's generated code with a runtime whose support module moved on to `__private_v4`.\n\
          \n\
          extern crate od_runtime as real_runtime;\n\
          extern crate self as od_runtime;\n\
@@ -47,7 +47,7 @@ fn newer_runtime() -> String {
          pub use real_runtime::{{od, pdo}};\n\
          \n\
          /// The next interface version (the same items, renamed module).\n\
-         pub mod __private_v3 {{\n    pub use real_runtime::{RUNTIME_PRIVATE}::*;\n}}\n\
+         pub mod __private_v4 {{\n    pub use real_runtime::{RUNTIME_PRIVATE}::*;\n}}\n\
          \n{}\nfn main() {{}}\n",
         tiny()
     )
@@ -76,7 +76,7 @@ fn fixtures_are_what_the_generator_writes() {
 #[test]
 fn fixtures_differ_from_todays_code_only_in_the_version() {
     let [(_, older), (_, newer)] = fixtures();
-    assert!(older.contains("::od_runtime::__private_v1::") && !older.contains(RUNTIME_PRIVATE));
+    assert!(older.contains("::od_runtime::__private_v2::") && !older.contains(RUNTIME_PRIVATE));
     assert!(newer.contains(&format!("::od_runtime::{RUNTIME_PRIVATE}::")));
 }
 

@@ -18,9 +18,9 @@ pub mod tiny {
         pub const SPEED: u16 = 0x2000;
     }
     static OBJECTS: [u16; 1] = [0x2000];
-    static LOOKUP: ::od_runtime::__private_v1::Lookup = ::od_runtime::__private_v1::Lookup {
-        pages: ::od_runtime::__private_v1::pages(&OBJECTS),
-        bits: &::od_runtime::__private_v1::bits::<1>(&OBJECTS),
+    static LOOKUP: ::od_runtime::__private_v2::Lookup = ::od_runtime::__private_v2::Lookup {
+        pages: ::od_runtime::__private_v2::pages(&OBJECTS),
+        bits: &::od_runtime::__private_v2::bits::<1>(&OBJECTS),
         ranks: &[[0, 1, 1, 1]],
         objects: &[[0, 1, 1, 1]],
         extra: &[0],
@@ -28,24 +28,24 @@ pub mod tiny {
     };
     /// Where a host finds each object's run of entries in one read (1 KB per page of
     /// 256 indices); empty on a microcontroller, which binary-searches `ROWS`.
-    static DIRECT: [u32; ::od_runtime::__private_v1::direct_len(1)] = ::od_runtime::__private_v1::direct(
+    static DIRECT: [u32; ::od_runtime::__private_v2::direct_len(1)] = ::od_runtime::__private_v2::direct(
         &ROWS,
     );
     /// The entry table the device reads, sorted by `(index, sub)`: 8 bytes a row.
     /// [`ENTRIES`] is made from it.
-    pub static ROWS: [::od_runtime::__private_v1::Row; 1] = [
-        ::od_runtime::__private_v1::Row {
+    pub static ROWS: [::od_runtime::__private_v2::Row; 1] = [
+        ::od_runtime::__private_v2::Row {
             index: 0x2000,
             sub: 0,
             data_type: ::od_runtime::od::DataType::Unsigned8,
-            slot: ::od_runtime::__private_v1::offset::<
+            slot: ::od_runtime::__private_v2::offset::<
                 u8,
             >(
                 ::core::mem::offset_of!(Dictionary, speed),
                 ::od_runtime::od::DataType::Unsigned8,
                 0,
             ),
-            meta: ::od_runtime::__private_v1::meta(
+            meta: ::od_runtime::__private_v2::meta(
                 ::od_runtime::od::Access::Rw,
                 false,
                 Some(0),
@@ -55,7 +55,7 @@ pub mod tiny {
     /// Metadata of every entry, sorted by `(index, sub)` (`ObjectDictionary::entries`): made
     /// from [`ROWS`] and [`EXTRAS`] at compile time. A firmware, whose device reads the rows,
     /// does not link it.
-    pub static ENTRIES: [::od_runtime::od::EntryInfo; 1] = ::od_runtime::__private_v1::entries(
+    pub static ENTRIES: [::od_runtime::od::EntryInfo; 1] = ::od_runtime::__private_v2::entries(
         &ROWS,
         &EXTRAS,
     );
@@ -100,19 +100,19 @@ pub mod tiny {
             index: u16,
             sub: u8,
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::lookup(&LOOKUP, &DIRECT, &ROWS, index, sub)
+            ::od_runtime::__private_v2::lookup(&LOOKUP, &DIRECT, &ROWS, index, sub)
         }
         /// The value of the entry at `pos` of [`ENTRIES`], through its slot.
         #[inline(always)]
-        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v1::Slot<'_>> {
-            ::od_runtime::__private_v1::slot(self, pos)
+        fn slot(&self, pos: usize) -> Option<::od_runtime::__private_v2::Slot<'_>> {
+            ::od_runtime::__private_v2::slot(self, pos)
         }
         #[inline(always)]
         fn slot_mut(
             &mut self,
             pos: usize,
-        ) -> Option<::od_runtime::__private_v1::SlotMut<'_>> {
-            ::od_runtime::__private_v1::slot_mut(self, pos)
+        ) -> Option<::od_runtime::__private_v2::SlotMut<'_>> {
+            ::od_runtime::__private_v2::slot_mut(self, pos)
         }
         /// The first 8 bytes of the entry at `pos` of [`ENTRIES`] (zeros for none): the body
         /// of `read_handle`.
@@ -120,9 +120,9 @@ pub mod tiny {
         fn read_at(&self, pos: usize) -> [u8; 8] {
             match self.slot(pos) {
                 Some(slot) => {
-                    ::od_runtime::__private_v1::first8(
+                    ::od_runtime::__private_v2::first8(
                         || {
-                            ::od_runtime::__private_v1::info_at::<Self>(pos)
+                            ::od_runtime::__private_v2::info_at::<Self>(pos)
                                 .map_or(0, |e| e.bits())
                         },
                         slot,
@@ -143,11 +143,11 @@ pub mod tiny {
         ) -> Result<(), ::od_runtime::od::AbortCode> {
             let (real_low, real_high) = (None, None);
             match (
-                ::od_runtime::__private_v1::info_at::<Self>(pos),
+                ::od_runtime::__private_v2::info_at::<Self>(pos),
                 self.slot_mut(pos),
             ) {
                 (Ok(info), Some(slot)) => {
-                    ::od_runtime::__private_v1::write(
+                    ::od_runtime::__private_v2::write(
                         &info,
                         slot,
                         data,
@@ -166,7 +166,7 @@ pub mod tiny {
             sub: u8,
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::bus_read(self, index, sub, buf)
+            ::od_runtime::__private_v2::bus_read(self, index, sub, buf)
         }
         /// Writes like an SDO download: as [`write`](::od_runtime::od::ObjectDictionary::write),
         /// but refuses read-only and constant entries with `READ_ONLY`.
@@ -176,7 +176,7 @@ pub mod tiny {
             sub: u8,
             data: &[u8],
         ) -> Result<(), ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::bus_write(self, index, sub, data)
+            ::od_runtime::__private_v2::bus_write(self, index, sub, data)
         }
         /// Checks an RPDO mapping (`0xIIIISSLL` entries) a master writes over SDO with the
         /// runtime's rules ([`check_mapping`](::od_runtime::pdo::check_mapping));
@@ -186,7 +186,7 @@ pub mod tiny {
         pub fn check_rpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::check_mapping(
+            ::od_runtime::__private_v2::check_mapping(
                 &EXTRAS,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Receive,
@@ -197,7 +197,7 @@ pub mod tiny {
         pub fn check_tpdo_mapping(
             mapping: &[u32],
         ) -> Result<u32, ::od_runtime::od::AbortCode> {
-            ::od_runtime::__private_v1::check_mapping(
+            ::od_runtime::__private_v2::check_mapping(
                 &EXTRAS,
                 &LOOKUP,
                 ::od_runtime::pdo::Direction::Transmit,
@@ -218,9 +218,9 @@ pub mod tiny {
             Ok(())
         }
     }
-    unsafe impl ::od_runtime::__private_v1::Table for Dictionary {
+    unsafe impl ::od_runtime::__private_v2::Table for Dictionary {
         #[inline(always)]
-        fn rows() -> &'static [::od_runtime::__private_v1::Row] {
+        fn rows() -> &'static [::od_runtime::__private_v2::Row] {
             &ROWS
         }
         #[inline(always)]
@@ -258,7 +258,7 @@ pub mod tiny {
             sub: u8,
         ) -> Result<::od_runtime::od::EntryInfo, ::od_runtime::od::AbortCode> {
             Self::position(index, sub)
-                .and_then(::od_runtime::__private_v1::info_at::<Self>)
+                .and_then(::od_runtime::__private_v2::info_at::<Self>)
         }
         #[inline]
         fn entry_count(&self) -> usize {
@@ -266,7 +266,7 @@ pub mod tiny {
         }
         #[inline]
         fn entry_at(&self, pos: usize) -> Option<::od_runtime::od::EntryInfo> {
-            ::od_runtime::__private_v1::info_at::<Self>(pos).ok()
+            ::od_runtime::__private_v2::info_at::<Self>(pos).ok()
         }
         fn read(
             &self,
@@ -275,9 +275,9 @@ pub mod tiny {
             buf: &mut [u8],
         ) -> Result<usize, ::od_runtime::od::AbortCode> {
             let pos = Self::position(index, sub)?;
-            match (::od_runtime::__private_v1::info_at::<Self>(pos), self.slot(pos)) {
+            match (::od_runtime::__private_v2::info_at::<Self>(pos), self.slot(pos)) {
                 (Ok(info), Some(slot)) => {
-                    ::od_runtime::__private_v1::read(&info, slot, buf)
+                    ::od_runtime::__private_v2::read(&info, slot, buf)
                 }
                 _ => Err(::od_runtime::od::AbortCode::NO_OBJECT),
             }
@@ -294,7 +294,7 @@ pub mod tiny {
         fn restore_defaults(&mut self, area: ::od_runtime::od::Area, node_id: u8) {
             for (pos, row) in ROWS.iter().enumerate() {
                 if area.contains(row.index) && let Some(slot) = self.slot_mut(pos) {
-                    ::od_runtime::__private_v1::set_default(
+                    ::od_runtime::__private_v2::set_default(
                         &row.info(&EXTRAS),
                         slot,
                         node_id,
@@ -314,10 +314,10 @@ pub mod tiny {
         }
         #[inline]
         fn read_mapped(&self, map: &[::od_runtime::od::MappedHandle]) -> u64 {
-            ::od_runtime::__private_v1::pack_mapped(
+            ::od_runtime::__private_v2::pack_mapped(
                 map,
                 |h| match self.slot(h.get() as usize) {
-                    Some(slot) => ::od_runtime::__private_v1::first8(|| 64, slot),
+                    Some(slot) => ::od_runtime::__private_v2::first8(|| 64, slot),
                     None => [0; 8],
                 },
             )
@@ -353,7 +353,7 @@ pub mod tiny {
     pub mod pdo {
         /// A received PDO was shorter than its mapping.
         #[doc(inline)]
-        pub use ::od_runtime::__private_v1::PdoLengthError as LengthError;
+        pub use ::od_runtime::__private_v2::PdoLengthError as LengthError;
     }
 }
 

@@ -202,7 +202,7 @@ async fn a_bad_mapping_is_refused_before_sending() {
 /// separately; a position written in units reaches 607Ah as the raw value.
 #[tokio::test(start_paused = true)]
 async fn units_from_the_drive_in_each_unit_system() {
-    use od_runtime::__private_v2::Ratio;
+    use od_runtime::__private_v3::Ratio;
     let n = net(&[(DeviceKind::Drvi, 2), (DeviceKind::Drcs, 3), (DeviceKind::Akd, 4)]);
     pass(Duration::from_millis(5)).await;
     let (a, b, c) = (n.bus.node(2).unwrap(), n.bus.node(3).unwrap(), n.bus.node(4).unwrap());

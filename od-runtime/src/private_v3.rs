@@ -17,10 +17,10 @@
 //! # Versioning
 //!
 //! Generated code names every item here by its absolute path,
-//! `::od_runtime::__private_v2::…`. When the interface between the generator and this module
-//! changes, the module gets a new name (`__private_v3`) and the generator follows; code generated
+//! `::od_runtime::__private_v3::…`. When the interface between the generator and this module
+//! changes, the module gets a new name (`__private_v4`) and the generator follows; code generated
 //! by an older generator then fails to compile with an error naming the module it expected
-//! (`could not find __private_v2 in od_runtime`), instead of misbehaving, and the fix is to
+//! (`could not find __private_v3 in od_runtime`), instead of misbehaving, and the fix is to
 //! regenerate (`cargo xtask gen`, or rebuild for a build script). Nothing here follows semver;
 //! do not call it by hand.
 //!
