@@ -161,6 +161,7 @@ impl SocketcandClient {
             last_error.unwrap_or_else(|| TransportError::Protocol("the address resolved to nothing".into()))
         })?;
         stream.set_nodelay(true).map_err(|e| TransportError::io("cannot configure the socket", e))?;
+        crate::socketcand::bound_receive_buffer(&stream)?;
         let mut client = Self {
             stream,
             peer,

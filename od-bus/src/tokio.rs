@@ -506,6 +506,7 @@ async fn connect(host: &str, port: u16, channel: &str, timeout: Duration) -> Res
         .map_err(|_| TransportError::Protocol(format!("no connection to {host}:{port} within {timeout:?}")))?
         .map_err(|e| TransportError::io(format!("cannot connect to {host}:{port}"), e))?;
     stream.set_nodelay(true).map_err(|e| TransportError::io("cannot configure the socket", e))?;
+    crate::socketcand::bound_receive_buffer(&stream)?;
     let (mut reader, mut writer) = stream.into_split();
     let mut session = ClientSession::new();
     let mut early = Vec::new();

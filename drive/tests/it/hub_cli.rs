@@ -137,33 +137,72 @@ fn dump_reports_the_frames_the_hub_dropped_because_it_read_too_slowly() {
         .spawn()
         .unwrap();
     let mut sender = SocketcandClient::connect(address.as_str(), "can0").unwrap();
-    // Wait until dump has joined (its own connection is the second on the channel).
-    std::thread::sleep(Duration::from_millis(300));
+    // Wait until dump has joined: it prints a probe frame. A fixed sleep was not enough on a
+    // loaded machine (dump joined after the flood, so nothing was lost and the test failed).
+    // The reader thread reads the probe's line, then waits for `go` before reading the rest.
+    let mut out = BufReader::new(dump.stdout.take().unwrap());
+    let (joined_tx, joined) = std::sync::mpsc::channel();
+    let (go, go_rx) = std::sync::mpsc::channel::<()>();
+    let reader = std::thread::spawn(move || {
+        let mut first = String::new();
+        let _ = out.read_line(&mut first);
+        let _ = joined_tx.send(());
+        let _ = go_rx.recv();
+        let mut text = String::new();
+        let _ = out.read_to_string(&mut text);
+        1 + text.lines().count()
+    });
+    let probe = CanFrame::standard(0x7FE, &[]).unwrap();
+    let mut probes = 0u64;
+    let join_deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        sender.send(probe).unwrap();
+        probes += 1;
+        if joined.recv_timeout(Duration::from_millis(100)).is_ok() {
+            break;
+        }
+        assert!(Instant::now() < join_deadline, "dump printed no frame within 20 s");
+    }
     let frame = CanFrame::standard(0x181, &[1, 2, 3, 4, 5, 6, 7, 8]).unwrap();
     for _ in 0..300_000 {
         sender.send(frame).unwrap();
     }
     sender.echo(Duration::from_secs(30)).unwrap();
     // Now read: dump catches up and is told what it missed.
-    let mut out = dump.stdout.take().unwrap();
-    let reader = std::thread::spawn(move || {
-        let mut text = String::new();
-        let _ = out.read_to_string(&mut text);
-        text.lines().count()
+    go.send(()).unwrap();
+    // The hub says what it dropped with the next frames it writes, at most once per report
+    // interval, and dump prints it once it has read that far: send a frame every 200 ms until
+    // dump's stderr says so (20 s at most), rather than guess how long that takes.
+    let mut stderr = BufReader::new(dump.stderr.take().unwrap());
+    let (said_tx, said) = std::sync::mpsc::channel();
+    let log_reader = std::thread::spawn(move || {
+        let mut log = String::new();
+        let mut line = String::new();
+        while stderr.read_line(&mut line).is_ok_and(|n| n > 0) {
+            if line.contains("frames lost") {
+                let _ = said_tx.send(());
+            }
+            log.push_str(&line);
+            line.clear();
+        }
+        log
     });
-    std::thread::sleep(Duration::from_millis(500));
-    sender.send(CanFrame::standard(0x7FF, &[]).unwrap()).unwrap();
-    std::thread::sleep(Duration::from_millis(1500));
-    sender.send(CanFrame::standard(0x7FF, &[]).unwrap()).unwrap();
+    let nudge = CanFrame::standard(0x7FF, &[]).unwrap();
+    let report_deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        sender.send(nudge).unwrap();
+        probes += 1;
+        if said.recv_timeout(Duration::from_millis(200)).is_ok() || Instant::now() >= report_deadline {
+            break;
+        }
+    }
     let deadline = Instant::now() + Duration::from_secs(30);
-    let mut stderr = dump.stderr.take().unwrap();
     let _ = unsafe { libc::kill(libc::pid_t::try_from(dump.id()).unwrap(), libc::SIGTERM) };
-    let mut log = String::new();
-    stderr.read_to_string(&mut log).unwrap();
     while dump.try_wait().unwrap().is_none() {
         assert!(Instant::now() < deadline, "dump did not stop");
         std::thread::sleep(Duration::from_millis(10));
     }
+    let log = log_reader.join().unwrap();
     let printed = reader.join().unwrap();
     let _ = hub.kill();
     let _ = hub.wait();
@@ -175,7 +214,7 @@ fn dump_reports_the_frames_the_hub_dropped_because_it_read_too_slowly() {
         })
         .max()
         .unwrap();
-    assert!(lost > 0 && printed as u64 + lost <= 300_002, "printed {printed}, lost {lost}");
+    assert!(lost > 0 && printed as u64 + lost <= 300_002 + probes, "printed {printed}, lost {lost}");
 }
 
 #[test]
