@@ -90,6 +90,8 @@ pub struct NodeRow {
     pub emcy: Option<LastEmcy>,
     /// For a CiA 402 device.
     pub drive: Option<Drive>,
+    /// Heard from (a node of a network description is listed before it is).
+    pub seen: bool,
     /// A poll of this node is under way.
     pub polling: bool,
     /// When it was last polled.
@@ -145,6 +147,7 @@ impl NodeRow {
             lost: false,
             emcy: None,
             drive,
+            seen: false,
             polling: false,
             polled: None,
             name_asked,
@@ -437,8 +440,18 @@ impl Model {
         }
     }
 
+    /// The row of a node heard from.
     fn node(&mut self, id: u8, devices: &BTreeMap<u8, Device>) -> &mut NodeRow {
-        self.nodes.entry(id).or_insert_with(|| NodeRow::new(id, devices.get(&id)))
+        let row = self.nodes.entry(id).or_insert_with(|| NodeRow::new(id, devices.get(&id)));
+        row.seen = true;
+        row
+    }
+
+    /// A node of the network description: listed under `name` before it is heard.
+    pub fn list(&mut self, id: u8, name: &str, devices: &BTreeMap<u8, Device>) {
+        let row = self.nodes.entry(id).or_insert_with(|| NodeRow::new(id, devices.get(&id)));
+        row.name = Some(name.to_owned());
+        row.name_asked = true;
     }
 
     /// A line among the events.
@@ -481,7 +494,7 @@ impl Model {
                     self.log(at, format!("node {node}: recovered, {}", nmt_long(state)));
                 }
                 NodeEvent::NeverSeen { node } => {
-                    self.node(node, devices).lost = true;
+                    self.nodes.entry(node).or_insert_with(|| NodeRow::new(node, devices.get(&node))).lost = true;
                     self.log(at, format!("node {node}: never heard from"));
                 }
                 ref other => self.log(at, format!("{other:?}")),
@@ -551,7 +564,7 @@ impl Model {
         let mut out = Vec::new();
         let Some(period) = self.poll else { return out };
         for row in self.nodes.values_mut() {
-            if row.polling || row.lost {
+            if row.polling || row.lost || !row.seen {
                 continue;
             }
             let mut objects = Vec::new();

@@ -32,17 +32,21 @@ struct Rig {
 impl Rig {
     /// The three drives (DRVI 2, DRCS 3, AKD 4) with their descriptions.
     fn new() -> Self {
+        Self::with(BTreeMap::from([
+            (2, device("camozzi-drvi.eds")),
+            (3, device("camozzi-drcs.eds")),
+            (4, device("kollmorgen-akd.eds")),
+        ]))
+    }
+
+    /// The three drives, seen through `devices`.
+    fn with(devices: BTreeMap<u8, Device>) -> Self {
         let mut sim = Sim::new();
         for (kind, id) in [(DeviceKind::Drvi, 2), (DeviceKind::Drcs, 3), (DeviceKind::Akd, 4)] {
             let config = NodeConfig { node_id: Some(id), ..Default::default() };
             sim.add(kind.build(&config, &drive::drives::DeviceApps::new()).expect("a simulated drive"));
         }
         let (bus, sim) = drive::node::spawn_with_master(sim, Config::default(), Duration::from_micros(200));
-        let devices = BTreeMap::from([
-            (2, device("camozzi-drvi.eds")),
-            (3, device("camozzi-drcs.eds")),
-            (4, device("kollmorgen-akd.eds")),
-        ]);
         let feed = Feed::new(&bus);
         Self { bus, _sim: sim, devices, model: Model::new("mem://top"), feed }
     }
@@ -210,6 +214,46 @@ async fn top_object_browser_searches_reads_and_writes_only_when_allowed() {
     assert!(r.model.requests.is_empty());
     r.key(KeyCode::Esc);
     assert!(r.model.browser.is_none());
+}
+
+/// The nodes of networks/example.toml listed under the description's names before they are
+/// heard; once the network is booted as described, its TPDOs are decoded by the mappings the
+/// description configures (the DRVI's position comes in its TPDO1, which by default carries the
+/// statusword alone) and its values shown in the sidecars' units.
+#[tokio::test(start_paused = true)]
+async fn top_lists_the_nodes_of_a_network_description() {
+    let file = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../networks/example.toml");
+    let network = crate::cli::boot::load(&[file]).expect("the example network");
+    let (devices, listed) = super::devices(&network, &[]).expect("its devices");
+    assert_eq!(listed, [(2, "x_axis".to_owned()), (3, "y_axis".to_owned()), (4, "z_axis".to_owned())]);
+    // The DRVI's default TPDO1 is its statusword alone; the description adds its position.
+    let tpdo1 = |d: &Device| d.pdos(2).iter().find(|p| p.name == "TPDO1").map(|p| p.fields.len());
+    assert_eq!(tpdo1(&devices[&2]), Some(2));
+    assert_eq!(tpdo1(&device("camozzi-drvi.eds")), Some(1));
+    let mut r = Rig::with(devices);
+    for (id, name) in &listed {
+        r.model.list(*id, name, &r.devices);
+    }
+    insta::assert_snapshot!("10_network_listed", r.screen());
+
+    // Booted as `od-master boot` does, top watching meanwhile.
+    let options = od_master::BootOptions { start: true, concurrent: true };
+    let (bus, net) = (r.bus.clone(), network.clone());
+    let boot = tokio::spawn(async move { od_master::boot::boot(&bus, &net, &options).await });
+    while !boot.is_finished() {
+        r.pass(50).await;
+    }
+    let reports = boot.await.unwrap();
+    assert!(reports.iter().all(|r| r.result.is_ok()), "{reports:?}");
+    let axis = od_master::Axis::new(r.bus.node(2).unwrap());
+    axis.enable().await.unwrap();
+    axis.run_velocity(5_000, Some(50_000), Some(50_000)).await.unwrap();
+    r.pass(600).await;
+    let d = r.model.nodes[&2].drive.clone().unwrap();
+    assert!(d.in_tpdo.contains(&0x6064), "the configured TPDO1 carries the position: {d:?}");
+    let names: Vec<_> = r.model.nodes.values().map(|n| n.name.clone().unwrap_or_default()).collect();
+    assert_eq!(names, ["x_axis", "y_axis", "z_axis"], "the description's names stay");
+    insta::assert_snapshot!("11_network_booted", r.screen());
 }
 
 #[test]

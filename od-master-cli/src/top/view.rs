@@ -151,6 +151,7 @@ fn draw_nodes(f: &mut Frame, m: &Model, now: Duration, area: Rect) {
     let rows = m.nodes.values().map(|n| {
         let (health, hb_age) = n.health(now);
         let (hb, hb_style) = match health {
+            Health::Unknown if !n.seen => ("not heard".to_owned(), Style::new().fg(Color::DarkGray)),
             Health::Unknown => ("-".to_owned(), Style::new()),
             Health::Alive => (format!("alive {}", hb_age.map(age).unwrap_or_default()), Style::new().fg(Color::Green)),
             Health::Late => (format!("late {}", hb_age.map(age).unwrap_or_default()), Style::new().fg(Color::Yellow)),
