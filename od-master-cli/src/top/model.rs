@@ -115,6 +115,36 @@ pub struct Series {
     pub points: VecDeque<(f64, f64)>,
 }
 
+/// A series of a node: (node, index, sub-index).
+pub type SeriesKey = (u8, u16, u8);
+
+/// The most series one plot shows (each its colour).
+pub const PLOT_SERIES: usize = 6;
+/// The most units one plot shows (each unit a panel with its own y-axis).
+pub const PLOT_UNITS: usize = 3;
+
+/// The plot: the series it shows, and the one the picker is on.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plot {
+    /// Shown, in the order added (which gives their colours).
+    pub shown: Vec<SeriesKey>,
+    /// The series the picker is on (added or removed by Space).
+    pub pick: SeriesKey,
+}
+
+/// The unit of a series on a plot's y-axis: the panel it goes to (series of one unit share a
+/// y-axis), the unit's symbol, and physical per raw. Raw values share a panel only with the
+/// same object's values (a statusword and a mode have nothing in common but being raw).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlotUnit {
+    /// Series with the same panel share a y-axis.
+    pub panel: String,
+    /// `deg`, `rpm`, ... or `raw`.
+    pub symbol: &'static str,
+    /// Physical per raw (1 for raw).
+    pub per_raw: f64,
+}
+
 /// The points a series keeps.
 pub const KEEP_POINTS: usize = 2000;
 /// The series a node keeps.
@@ -399,8 +429,8 @@ pub struct Model {
     pub watch: Vec<(u8, Duration)>,
     /// The object browser, when open.
     pub browser: Option<Browser>,
-    /// The plot, when open: the node and its series shown (an index among its series).
-    pub plot: Option<(u8, usize)>,
+    /// The plot, when open.
+    pub plot: Option<Plot>,
     /// The loop's own figures.
     pub stats: Stats,
     /// Reads and writes the browser asks for.
@@ -661,6 +691,87 @@ impl Model {
         }
     }
 
+    /// Every series of every node, by node then object.
+    pub fn all_series(&self) -> impl Iterator<Item = SeriesKey> + '_ {
+        self.nodes.values().flat_map(|n| n.series.keys().map(move |&(i, s)| (n.id, i, s)))
+    }
+
+    /// A series' label and unit (`None`: no such series).
+    pub fn series_info(&self, (node, index, sub): SeriesKey) -> Option<(&Series, PlotUnit)> {
+        let row = self.nodes.get(&node)?;
+        let series = row.series.get(&(index, sub))?;
+        let unit = match row.unit_of(index, sub) {
+            Some((symbol, per_raw)) => PlotUnit { panel: symbol.to_owned(), symbol, per_raw },
+            None => PlotUnit { panel: format!("{index:04X}h:{sub}"), symbol: "raw", per_raw: 1.0 },
+        };
+        Some((series, unit))
+    }
+
+    /// Opens the plot on the selected node: its position and velocity when it has them, else
+    /// its first series.
+    fn open_plot(&mut self) {
+        let Some(n) = self.selected_node() else {
+            self.status = Some("no node selected".into());
+            return;
+        };
+        let Some(&(index, sub)) = n.series.keys().next() else {
+            self.status = Some(format!("node {}: no values to plot yet (TPDOs or polled)", n.id));
+            return;
+        };
+        let mut shown: Vec<SeriesKey> = [(0x6064, 0), (0x606C, 0)]
+            .iter()
+            .filter(|k| n.series.contains_key(k))
+            .map(|&(i, s)| (n.id, i, s))
+            .collect();
+        if shown.is_empty() {
+            shown.push((n.id, index, sub));
+        }
+        self.plot = Some(Plot { pick: shown[0], shown });
+    }
+
+    /// A key in the plot: the picker moves over every node's series, Space adds or removes the
+    /// picked one.
+    fn plot_key(&mut self, key: KeyEvent) {
+        let all: Vec<SeriesKey> = self.all_series().collect();
+        let Some(plot) = &self.plot else { return };
+        let (mut shown, pick) = (plot.shown.clone(), plot.pick);
+        let at = all.iter().position(|k| *k == pick).unwrap_or(0);
+        let mut pick = pick;
+        match key.code {
+            KeyCode::Esc | KeyCode::Char('g') => {
+                self.plot = None;
+                return;
+            }
+            KeyCode::Char('q') => self.quit = true,
+            KeyCode::Up | KeyCode::Left | KeyCode::Char('k') => {
+                pick = all.get(at.wrapping_sub(1)).copied().unwrap_or(pick)
+            }
+            KeyCode::Down | KeyCode::Right | KeyCode::Char('j') => pick = all.get(at + 1).copied().unwrap_or(pick),
+            KeyCode::Char('c') => shown.clear(),
+            KeyCode::Char(' ') | KeyCode::Enter => {
+                if let Some(i) = shown.iter().position(|k| *k == pick) {
+                    shown.remove(i);
+                } else if shown.len() >= PLOT_SERIES {
+                    self.status = Some(format!("a plot shows at most {PLOT_SERIES} series: remove one first (Space)"));
+                } else {
+                    let unit = |k| self.series_info(k).map(|(_, u)| u.panel);
+                    let mut panels: Vec<_> = shown.iter().filter_map(|&k| unit(k)).collect();
+                    panels.sort();
+                    panels.dedup();
+                    let new = unit(pick);
+                    if panels.len() >= PLOT_UNITS && !panels.contains(new.as_ref().unwrap_or(&String::new())) {
+                        self.status =
+                            Some(format!("a plot shows at most {PLOT_UNITS} units: remove a series of another first"));
+                    } else {
+                        shown.push(pick);
+                    }
+                }
+            }
+            _ => {}
+        }
+        self.plot = Some(Plot { shown, pick });
+    }
+
     /// The frames the filter passes, newest first.
     pub fn shown_frames(&self) -> impl Iterator<Item = &FrameLine> {
         self.frames.iter().filter(|f| self.filter.passes(f))
@@ -808,15 +919,12 @@ impl Model {
             self.browser_key(key);
             return;
         }
-        if let Some((node, at)) = &mut self.plot {
-            let len = self.nodes.get(node).map_or(0, |n| n.series.len());
-            match key.code {
-                KeyCode::Esc | KeyCode::Char('g') => self.plot = None,
-                KeyCode::Char('q') => self.quit = true,
-                KeyCode::Up => *at = at.saturating_sub(1),
-                KeyCode::Down => *at = (*at + 1).min(len.saturating_sub(1)),
-                _ => {}
-            }
+        if self.input.is_none() {
+            // A message is said until the next key.
+            self.status = None;
+        }
+        if self.plot.is_some() {
+            self.plot_key(key);
             return;
         }
         if let Some(input) = &mut self.input {
@@ -859,11 +967,7 @@ impl Model {
             }
             KeyCode::Char('p') => self.paused = !self.paused,
             KeyCode::Char('o') => self.open_browser(devices),
-            KeyCode::Char('g') => match self.selected_node() {
-                Some(n) if !n.series.is_empty() => self.plot = Some((n.id, 0)),
-                Some(n) => self.status = Some(format!("node {}: no values to plot yet (TPDOs or polled)", n.id)),
-                None => self.status = Some("no node selected".into()),
-            },
+            KeyCode::Char('g') => self.open_plot(),
             KeyCode::Enter if self.focus == Pane::Nodes => self.open_browser(devices),
             KeyCode::Char('/') => self.input = Some(self.filter.text()),
             KeyCode::Up | KeyCode::Char('k') => self.move_by(-1),

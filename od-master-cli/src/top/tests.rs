@@ -109,11 +109,44 @@ async fn top_screens_of_drives_booting_moving_failing() {
     assert!(d.position.is_some_and(|p| p > 1_000), "{d:?}");
     insta::assert_snapshot!("3_moving", r.screen());
     // Its position over time, in degrees (polled: the DRVI's TPDO carries only its statusword).
+    // Opened on its position and velocity: two units, two panels on one time axis.
     r.key(KeyCode::Char('g'));
     let series: Vec<_> = r.model.nodes[&2].series.values().map(|s| s.label.clone()).collect();
     assert_eq!(series, ["statusword", "position (polled)", "velocity (polled)"]);
-    r.key(KeyCode::Down);
+    let shown = |r: &Rig| r.model.plot.as_ref().map(|p| p.shown.clone()).unwrap_or_default();
+    let pick = |r: &Rig| r.model.plot.as_ref().map(|p| p.pick);
+    assert_eq!(shown(&r), [(2, 0x6064, 0), (2, 0x606C, 0)]);
+    // Its statusword added (a third unit: raw), then its position removed.
+    r.key(KeyCode::Left);
+    assert_eq!(pick(&r), Some((2, 0x6041, 0)));
+    r.key(KeyCode::Char(' '));
+    assert_eq!(shown(&r), [(2, 0x6064, 0), (2, 0x606C, 0), (2, 0x6041, 0)]);
     insta::assert_snapshot!("3_moving_plot", r.screen());
+    r.key(KeyCode::Right);
+    r.key(KeyCode::Char(' '));
+    assert_eq!(shown(&r), [(2, 0x606C, 0), (2, 0x6041, 0)]);
+    // The picker goes on to the next node: the DRCS's statusword shares the raw statusword's
+    // panel (same object), in a marker of its own.
+    r.key(KeyCode::Right);
+    r.key(KeyCode::Right);
+    assert_eq!(pick(&r), Some((3, 0x6041, 0)));
+    r.key(KeyCode::Char(' '));
+    assert_eq!(shown(&r), [(2, 0x606C, 0), (2, 0x6041, 0), (3, 0x6041, 0)]);
+    insta::assert_snapshot!("3_moving_plot_one_panel_two_series", r.screen());
+    // A fourth unit is refused, saying why; then everything removed.
+    r.key(KeyCode::Right);
+    assert_eq!(pick(&r), Some((3, 0x6064, 0)));
+    r.key(KeyCode::Char(' '));
+    assert_eq!(shown(&r).len(), 4, "a third unit (mm)");
+    while pick(&r) != Some((4, 0x6064, 0)) {
+        assert!(pick(&r) < Some((4, 0x6064, 0)), "the picker passes every series in order");
+        r.key(KeyCode::Right);
+    }
+    r.key(KeyCode::Char(' '));
+    assert_eq!(shown(&r).len(), 4, "a fourth unit (the AKD's user units) refused");
+    assert!(r.model.status.as_deref().is_some_and(|s| s.contains("at most 3 units")), "{:?}", r.model.status);
+    r.key(KeyCode::Char('c'));
+    assert_eq!(shown(&r), []);
     r.key(KeyCode::Esc);
     assert_eq!(r.model.plot, None);
 
@@ -279,4 +312,17 @@ fn a_bad_filter_is_said_and_not_applied() {
     m.on_key(KeyEvent::new(KeyCode::Enter, KeyModifiers::NONE), &BTreeMap::new());
     assert_eq!(m.filter.kind.as_deref(), Some("pdo"));
     assert!(m.status.as_deref().unwrap().contains("`pdoxyz`"), "{:?}", m.status);
+}
+
+/// A plotted value holds until the next one came (steps, not lines between values), the last
+/// one until now, the one before the window from the window's start.
+#[test]
+fn a_plotted_value_holds_until_the_next() {
+    let points = std::collections::VecDeque::from([(0.5, 1.0), (1.0, 10.0), (2.0, 20.0)]);
+    assert_eq!(
+        view::held(&points, 0.8, 3.0, 2.0),
+        [(0.8, 2.0), (1.0, 2.0), (1.0, 20.0), (2.0, 20.0), (2.0, 40.0), (3.0, 40.0)]
+    );
+    assert_eq!(view::held(&points, 5.0, 6.0, 1.0), [(5.0, 20.0), (6.0, 20.0)]);
+    assert_eq!(view::held(&std::collections::VecDeque::new(), 0.0, 1.0, 1.0), []);
 }
