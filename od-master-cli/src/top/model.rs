@@ -62,6 +62,10 @@ pub const DRIVE_OBJECTS: [u16; 4] = [0x6041, 0x6061, 0x6064, 0x606C];
 /// How often the drive objects no TPDO carries are read, by default.
 pub const POLL: Duration = Duration::from_millis(200);
 
+/// How long top's polls of a node wait after another master's SDO request to it: two masters
+/// on one SDO channel take each other's answers (CiA 301 gives a node one server channel).
+pub const YIELD: Duration = Duration::from_secs(2);
+
 /// Objects to read from a node by SDO, and why.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Poll {
@@ -92,6 +96,9 @@ pub struct NodeRow {
     pub drive: Option<Drive>,
     /// Heard from (a node of a network description is listed before it is).
     pub seen: bool,
+    /// When another master's SDO request to it was last seen (top's own are not among the
+    /// frames): its polls wait [`YIELD`] after it, not to answer for the other's transfers.
+    pub other_master: Option<Duration>,
     /// A poll of this node is under way.
     pub polling: bool,
     /// When it was last polled.
@@ -178,6 +185,7 @@ impl NodeRow {
             emcy: None,
             drive,
             seen: false,
+            other_master: None,
             polling: false,
             polled: None,
             name_asked,
@@ -581,6 +589,17 @@ impl Model {
                 drive_fields(self.node(node, devices), device, node, id, data, at);
             }
         }
+        // Another master's SDO request (top's own are not among the frames): top's polls of
+        // that node wait, said once among the events.
+        if let (Some(node), "sdo-request") = (d.node, d.kind)
+            && let Some(row) = self.nodes.get_mut(&node)
+        {
+            let quiet = row.other_master.is_none_or(|t| at.saturating_sub(t) >= YIELD);
+            row.other_master = Some(at);
+            if quiet && self.poll.is_some() {
+                self.log(at, format!("node {node}: another master's SDO: top's polls of it wait"));
+            }
+        }
         if !self.paused {
             self.frames.push_front(FrameLine { at, kind: d.kind, node: d.node, text: d.text });
             self.frames.truncate(KEEP_FRAMES);
@@ -594,7 +613,7 @@ impl Model {
         let mut out = Vec::new();
         let Some(period) = self.poll else { return out };
         for row in self.nodes.values_mut() {
-            if row.polling || row.lost || !row.seen {
+            if row.polling || row.lost || !row.seen || row.other_master.is_some_and(|t| now.saturating_sub(t) < YIELD) {
                 continue;
             }
             let mut objects = Vec::new();

@@ -326,3 +326,23 @@ fn a_plotted_value_holds_until_the_next() {
     assert_eq!(view::held(&points, 5.0, 6.0, 1.0), [(5.0, 20.0), (6.0, 20.0)]);
     assert_eq!(view::held(&std::collections::VecDeque::new(), 0.0, 1.0, 1.0), []);
 }
+
+/// Another master's SDO request to a node (top's own are not among the frames) holds top's polls
+/// of it for [`YIELD`](super::model::YIELD), said once among the events.
+#[test]
+fn polls_wait_while_another_master_talks_to_the_node() {
+    let ms = Duration::from_millis;
+    let devices = BTreeMap::from([(2, device("camozzi-drvi.eds"))]);
+    let mut m = Model::new("mem://x");
+    m.on_frame(ms(0), 0x702, false, &[0x05], &devices);
+    m.on_frame(ms(100), 0x702, false, &[0x05], &devices);
+    assert_eq!(m.polls(ms(100), &devices).len(), 1, "a heard drive is polled");
+    m.poll_done(2, &devices);
+    m.on_frame(ms(150), 0x602, false, &[0x40, 0x41, 0x60, 0, 0, 0, 0, 0], &devices);
+    m.on_frame(ms(160), 0x602, false, &[0x40, 0x41, 0x60, 0, 0, 0, 0, 0], &devices);
+    assert_eq!(m.polls(ms(400), &devices), []);
+    let said: Vec<_> = m.events.iter().filter(|(_, e)| e.contains("another master")).collect();
+    assert_eq!(said.len(), 1, "{:?}", m.events);
+    assert_eq!(m.polls(ms(2159), &devices), []);
+    assert_eq!(m.polls(ms(2160), &devices).len(), 1, "polled again once the other master is quiet");
+}

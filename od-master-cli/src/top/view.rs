@@ -293,7 +293,9 @@ fn draw_nodes(f: &mut Frame, m: &Model, now: Duration, area: Rect) {
             Cell::new(d.mode.map_or("-".into(), mode_name)),
             Cell::new(format!("{:>9}", opt(d.position, n.units[0]))),
             Cell::new(format!("{:>9}", opt(d.velocity, n.units[1]))),
-            Cell::new(emcy).style(Style::new().fg(Color::Red)),
+            // Styled only when there is one: an empty red cell shows as a red block on the
+            // selected (reversed) row.
+            if emcy.is_empty() { Cell::new("") } else { Cell::new(emcy).style(Style::new().fg(Color::Red)) },
         ])
     });
     let widths = [
