@@ -173,11 +173,14 @@ pub async fn run_loop<B: Backend>(
     }
 }
 
+/// The devices by node, and the nodes of a network description with their names.
+pub type Described = (BTreeMap<u8, Device>, Vec<(u8, String)>);
+
 /// The devices of a network description's nodes (each with its EDS or DCF, the sidecar beside
 /// it and the PDOs the network configures: the writes of its boot plan) and of the `--eds
 /// NODE=FILE` arguments (which add nodes or replace a described node's file); and the described
 /// nodes with their names, listed before they are heard.
-pub fn devices(network: &Network, eds: &[String]) -> Result<(BTreeMap<u8, Device>, Vec<(u8, String)>), String> {
+pub fn devices(network: &Network, eds: &[String]) -> Result<Described, String> {
     let mut devices = BTreeMap::new();
     let mut listed = Vec::new();
     for node in &network.nodes {
