@@ -195,16 +195,16 @@ impl NodeRow {
         }
     }
 
-    fn record(&mut self, index: u16, sub: u8, label: Option<String>, at: Duration, value: f64) {
-        if self.series.len() >= KEEP_SERIES && !self.series.contains_key(&(index, sub)) {
-            return;
+    /// A value of a series; `label` names a new series (asked once: on a busy bus this runs
+    /// for every field of every TPDO).
+    fn record(&mut self, index: u16, sub: u8, label: impl FnOnce() -> String, at: Duration, value: f64) {
+        if !self.series.contains_key(&(index, sub)) {
+            if self.series.len() >= KEEP_SERIES {
+                return;
+            }
+            self.series.insert((index, sub), Series { label: label(), points: VecDeque::new() });
         }
-        let s = self.series.entry((index, sub)).or_default();
-        if let Some(label) = label {
-            s.label = label;
-        } else if s.label.is_empty() {
-            s.label = format!("{index:04X}h:{sub}");
-        }
+        let Some(s) = self.series.get_mut(&(index, sub)) else { return };
         s.points.push_back((at.as_secs_f64(), value));
         if s.points.len() > KEEP_POINTS {
             s.points.pop_front();
@@ -678,7 +678,7 @@ impl Model {
         }
         if matches!(index, 0x6064 | 0x606C) {
             let label = if index == 0x6064 { "position (polled)" } else { "velocity (polled)" };
-            row.record(index, sub, Some(label.into()), at, int(4) as f64);
+            row.record(index, sub, || label.into(), at, int(4) as f64);
         }
     }
 
@@ -1084,11 +1084,11 @@ fn drive_fields(row: &mut NodeRow, device: &Device, node: u8, id: u32, data: &[u
         }
         // Signed, from its width, when its type is.
         let signed = if bits < 64 && v >> (bits - 1) & 1 == 1 { (v | !0u64 << bits) as i64 } else { v as i64 };
-        let is_signed =
-            device.model.entry(f.index, f.sub).is_some_and(|e| format!("{:?}", e.data_type).starts_with("Integer"));
-        let label =
-            device.names.name_of(f.index, f.sub).map_or_else(|| format!("{:04X}h:{}", f.index, f.sub), str::to_owned);
-        row.record(f.index, f.sub, Some(label), at, if is_signed { signed as f64 } else { v as f64 });
+        let is_signed = device.model.entry(f.index, f.sub).is_some_and(|e| e.data_type.name().starts_with("INTEGER"));
+        let label = || {
+            device.names.name_of(f.index, f.sub).map_or_else(|| format!("{:04X}h:{}", f.index, f.sub), str::to_owned)
+        };
+        row.record(f.index, f.sub, label, at, if is_signed { signed as f64 } else { v as f64 });
         let Some(drive) = &mut row.drive else { continue };
         if f.sub == 0 && DRIVE_OBJECTS.contains(&f.index) && !drive.in_tpdo.contains(&f.index) {
             drive.in_tpdo.push(f.index);

@@ -16,7 +16,8 @@ use super::model::{Browser, Health, Model, Pane, Plot, PlotUnit, SeriesKey, mode
 
 /// Draws the whole screen at `now` (the time since the view started).
 pub fn draw(f: &mut Frame, m: &Model, now: Duration) {
-    let nodes_height = (m.nodes.len() as u16 + 4).clamp(5, 12);
+    // The plot takes room from the nodes pane (the selected node's row stays in view).
+    let nodes_height = (m.nodes.len() as u16 + 4).clamp(5, if m.plot.is_some() { 7 } else { 12 });
     let [title, nodes, events, frames, keys] = Layout::vertical([
         Constraint::Length(1),
         Constraint::Length(nodes_height),
@@ -93,7 +94,15 @@ fn draw_plot(f: &mut Frame, m: &Model, plot: &Plot, now: Duration, area: Rect) {
     // As many panels as have room for a legend line and two rows of chart (eight dots of
     // Braille; the time axis takes two more rows under the last one).
     let fit = usize::from(charts_area.height.saturating_sub(2) / 3).max(1);
-    panels.truncate(fit);
+    if panels.len() > fit {
+        let hidden: usize = panels[fit..].iter().map(|(_, list)| list.len()).sum();
+        let note = format!(" {hidden} series in {} more units: a taller terminal shows them ", panels.len() - fit);
+        f.render_widget(
+            Paragraph::new(Line::from(Span::styled(note, Style::new().fg(Color::Yellow))).right_aligned()),
+            Rect { height: 1, ..area },
+        );
+        panels.truncate(fit);
+    }
     // Each panel's y range, and labels of one width, so that every panel's time axis starts in
     // the same column.
     let ranges: Vec<(f64, f64)> = panels
