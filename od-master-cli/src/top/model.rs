@@ -152,8 +152,12 @@ pub struct PlotUnit {
     pub per_raw: f64,
 }
 
-/// The points a series keeps.
-pub const KEEP_POINTS: usize = 2000;
+/// The points a series keeps: 30 s at four points a [`BUCKET`], whatever the rate.
+pub const KEEP_POINTS: usize = 3000;
+/// A series keeps the first, lowest, highest and last value of each 40 ms (a TPDO every
+/// millisecond would otherwise fill [`KEEP_POINTS`] in 3 s; a plot of 30 s has about 150 dots
+/// across, 200 ms each).
+pub const BUCKET: f64 = 0.040;
 /// The series a node keeps.
 pub const KEEP_SERIES: usize = 32;
 
@@ -205,7 +209,32 @@ impl NodeRow {
             self.series.insert((index, sub), Series { label: label(), points: VecDeque::new() });
         }
         let Some(s) = self.series.get_mut(&(index, sub)) else { return };
-        s.points.push_back((at.as_secs_f64(), value));
+        let t = at.as_secs_f64();
+        // The points of this bucket (at the end) and this one become the bucket's first, lowest,
+        // highest and last, in time order: a brief spike stays.
+        let bucket = |t: f64| (t / BUCKET).floor();
+        let mut run = [(0.0, 0.0); 5];
+        let mut n = 0;
+        while n < 4
+            && let Some(&p) = s.points.back()
+            && bucket(p.0) == bucket(t)
+        {
+            s.points.pop_back();
+            n += 1;
+            run[4 - n] = p;
+        }
+        let run = &mut run[4 - n..];
+        run[n] = (t, value);
+        let pick = |better: fn(f64, f64) -> bool| {
+            (0..run.len()).fold(0, |best, i| if better(run[i].1, run[best].1) { i } else { best })
+        };
+        let mut keep = [0, pick(|a, b| a < b), pick(|a, b| a > b), run.len() - 1];
+        keep.sort_unstable();
+        for (k, &i) in keep.iter().enumerate() {
+            if k == 0 || keep[k - 1] != i {
+                s.points.push_back(run[i]);
+            }
+        }
         if s.points.len() > KEEP_POINTS {
             s.points.pop_front();
         }

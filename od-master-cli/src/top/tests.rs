@@ -346,3 +346,46 @@ fn polls_wait_while_another_master_talks_to_the_node() {
     assert_eq!(m.polls(ms(2159), &devices), []);
     assert_eq!(m.polls(ms(2160), &devices).len(), 1, "polled again once the other master is quiet");
 }
+
+/// Thinned to four points a column: each column's first, lowest, highest and last, in time
+/// order; few points are kept as they are.
+#[test]
+fn a_plot_keeps_four_points_a_column() {
+    let points: Vec<(f64, f64)> = (0..100).map(|i| (f64::from(i) / 10.0, f64::from((i * 37) % 11))).collect();
+    let thinned = view::thin(&points, 0.0, 10.0, 5);
+    assert!(thinned.len() <= 20, "{thinned:?}");
+    assert!(thinned.windows(2).all(|w| w[0].0 < w[1].0), "in time order");
+    for c in 0..5 {
+        let run: Vec<_> = points.iter().filter(|p| (p.0 / 2.0) as usize == c).collect();
+        let kept: Vec<_> = thinned.iter().filter(|p| (p.0 / 2.0) as usize == c).collect();
+        assert_eq!(kept.first(), run.first());
+        assert_eq!(kept.last(), run.last());
+        let max = |v: &[&(f64, f64)]| v.iter().map(|p| p.1).fold(f64::MIN, f64::max);
+        let min = |v: &[&(f64, f64)]| v.iter().map(|p| p.1).fold(f64::MAX, f64::min);
+        assert_eq!((min(&kept), max(&kept)), (min(&run), max(&run)));
+    }
+    assert_eq!(view::thin(&points[..10], 0.0, 10.0, 5), &points[..10]);
+}
+
+/// A series keeps four points a 40 ms bucket (its first, lowest, highest and last value), so
+/// that 30 s fit whatever the rate and a brief spike stays.
+#[test]
+fn a_series_keeps_four_points_a_bucket() {
+    let devices = BTreeMap::from([(2, device("camozzi-drvi.eds"))]);
+    let mut m = Model::new("mem://x");
+    // The DRVI's TPDO1 (statusword) every millisecond for 40 s.
+    for ms in 0..40_000u64 {
+        let v = (ms % 7) as u8;
+        m.on_frame(Duration::from_millis(ms), 0x182, false, &[v, 0], &devices);
+    }
+    let s = &m.nodes[&2].series[&(0x6041, 0)];
+    assert_eq!(s.points.len(), super::model::KEEP_POINTS);
+    assert!(s.points.front().unwrap().0 <= 10.0, "the last 30 s kept: {:?}", s.points.front());
+    assert_eq!(*s.points.back().unwrap(), (39.999, f64::from((39_999 % 7) as u8)));
+    // The last bucket (39.960..40.000 s): first 39.960 (value 4), lowest 0, highest 6, last.
+    let last: Vec<_> = s.points.iter().rev().take(4).rev().copied().collect();
+    assert_eq!(last.first(), Some(&(39.96, 4.0)));
+    assert_eq!(last.iter().map(|p| p.1).fold(f64::MAX, f64::min), 0.0);
+    assert_eq!(last.iter().map(|p| p.1).fold(f64::MIN, f64::max), 6.0);
+    assert!(last.windows(2).all(|w| w[0].0 < w[1].0), "{last:?}");
+}

@@ -139,7 +139,7 @@ fn draw_plot(f: &mut Frame, m: &Model, plot: &Plot, now: Duration, area: Rect) {
             legend.push(Span::styled(format!(" {symbol} {} {} {latest}", s.key.0, s.label), Style::new().fg(s.colour)));
         }
         f.render_widget(Paragraph::new(Line::from(legend)), legend_area);
-        let datasets = list
+        let datasets: Vec<Dataset> = list
             .iter()
             .enumerate()
             .map(|(j, s)| {
@@ -147,9 +147,13 @@ fn draw_plot(f: &mut Frame, m: &Model, plot: &Plot, now: Duration, area: Rect) {
                     .marker(SERIES_MARKERS[j % SERIES_MARKERS.len()].0)
                     .graph_type(GraphType::Line)
                     .style(Style::new().fg(s.colour))
-                    .data(&s.points)
             })
             .collect();
+        // At most four points a column of Braille dots (first, lowest, highest, last): what
+        // the chart can show of thousands, at a fraction of the drawing.
+        let columns = usize::from(chart_area.width.saturating_sub(label_width as u16 + 1)) * 2;
+        let thinned: Vec<Vec<(f64, f64)>> = list.iter().map(|s| thin(&s.points, t0, t1, columns)).collect();
+        let datasets: Vec<Dataset> = datasets.into_iter().zip(&thinned).map(|(d, p)| d.data(p)).collect();
         let y_labels = [format!("{:>label_width$}", axis_number(lo)), format!("{:>label_width$}", axis_number(hi))];
         let mut x_axis = Axis::default().bounds([t0, t1]);
         if last {
@@ -182,6 +186,36 @@ pub fn held(points: &std::collections::VecDeque<(f64, f64)>, t0: f64, t1: f64, p
         && t < t1
     {
         out.push((t1, v));
+    }
+    out
+}
+
+/// `points` (in time order) with at most four a column when `t0..t1` spans `columns` columns:
+/// each column's first, lowest, highest and last, in time order.
+pub fn thin(points: &[(f64, f64)], t0: f64, t1: f64, columns: usize) -> Vec<(f64, f64)> {
+    if points.len() <= 4 * columns || columns == 0 || t1 <= t0 {
+        return points.to_vec();
+    }
+    let column = |t: f64| (((t - t0) / (t1 - t0) * columns as f64) as usize).min(columns - 1);
+    let mut out = Vec::with_capacity(4 * columns);
+    let mut start = 0;
+    while start < points.len() {
+        let c = column(points[start].0);
+        let end = start + points[start..].iter().take_while(|p| column(p.0) == c).count();
+        let run = &points[start..end];
+        let pick = |better: fn(f64, f64) -> bool| {
+            (0..run.len()).fold(0, |best, i| if better(run[i].1, run[best].1) { i } else { best })
+        };
+        let mut picked = [0, pick(|a, b| a < b), pick(|a, b| a > b), run.len() - 1];
+        picked.sort_unstable();
+        let mut last = None;
+        for i in picked {
+            if last != Some(i) {
+                out.push(run[i]);
+                last = Some(i);
+            }
+        }
+        start = end;
     }
     out
 }
