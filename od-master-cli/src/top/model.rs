@@ -111,6 +111,8 @@ pub struct NodeRow {
     pub units: [Option<(&'static str, f64)>; 2],
     /// The values its TPDOs carried and the polls read, over time, for the plots.
     pub series: BTreeMap<(u16, u8), Series>,
+    /// Entries picked in the object browser to plot (`g`): read at every poll, by type.
+    pub watched: Vec<(u16, u8, DataType, String)>,
 }
 
 /// A value over time: (seconds since the view started, raw value).
@@ -196,6 +198,7 @@ impl NodeRow {
             unit_values: None,
             units: [None, None],
             series: BTreeMap::new(),
+            watched: Vec::new(),
         }
     }
 
@@ -657,12 +660,15 @@ impl Model {
                 row.unit_values = Some(Vec::new());
                 objects.extend(units::objects(sidecar).iter().map(|o| (o.index, o.sub_or_zero())));
             }
-            if let Some(d) = &row.drive
+            if (row.drive.is_some() || !row.watched.is_empty())
                 && row.heard.is_some()
                 && row.polled.is_none_or(|t| now.saturating_sub(t) >= period)
             {
                 row.polled = Some(now);
-                objects.extend(DRIVE_OBJECTS.iter().filter(|i| !d.in_tpdo.contains(i)).map(|&i| (i, 0)));
+                if let Some(d) = &row.drive {
+                    objects.extend(DRIVE_OBJECTS.iter().filter(|i| !d.in_tpdo.contains(i)).map(|&i| (i, 0)));
+                }
+                objects.extend(row.watched.iter().map(|w| (w.0, w.1)));
             }
             if !objects.is_empty() {
                 row.polling = true;
@@ -685,6 +691,15 @@ impl Model {
             let bits = 8 * width.clamp(1, 8) as u32;
             if bits < 64 && v >> (bits - 1) & 1 == 1 { (v | !0u64 << bits) as i64 } else { v as i64 }
         };
+        if let Some((.., data_type, name)) = row.watched.iter().find(|w| (w.0, w.1) == (index, sub)) {
+            if let Some(v) = number(&le, *data_type) {
+                let name = name.clone();
+                row.record(index, sub, || name, at, v);
+            }
+            if !DRIVE_OBJECTS.contains(&index) {
+                return;
+            }
+        }
         if let Some(values) = &mut row.unit_values
             && !DRIVE_OBJECTS.contains(&index)
             && index != 0x1008
@@ -949,6 +964,38 @@ impl Model {
                     b.result = Some(format!("reading {index:04X}h:{sub}..."));
                 }
             }
+            KeyCode::Char('g') => {
+                let Some(e) = b.current().cloned() else { return };
+                let node = b.node;
+                let mut le = [0u8; 8];
+                le[0] = 1;
+                let readable = e.access.contains('r') || e.access == "const";
+                if number(&le, e.data_type).is_none() || !readable {
+                    b.result =
+                        Some(format!("{:04X}h:{} is not a readable number: it cannot be plotted", e.index, e.sub));
+                    return;
+                }
+                if self.poll.is_none() {
+                    b.result = Some("polling is off (--poll-ms 0): only TPDO values can be plotted".into());
+                    return;
+                }
+                let Some(row) = self.nodes.get_mut(&node) else { return };
+                if !row.watched.iter().any(|w| (w.0, w.1) == (e.index, e.sub)) {
+                    if row.watched.len() >= KEEP_WATCHED {
+                        b.result = Some(format!("at most {KEEP_WATCHED} entries a node are polled for plots"));
+                        return;
+                    }
+                    row.watched.push((e.index, e.sub, e.data_type, e.name.clone()));
+                }
+                let key = (node, e.index, e.sub);
+                self.browser = None;
+                let mut plot = self.plot.take().unwrap_or(Plot { shown: Vec::new(), pick: key });
+                if !plot.shown.contains(&key) && plot.shown.len() < PLOT_SERIES {
+                    plot.shown.push(key);
+                }
+                plot.pick = key;
+                self.plot = Some(plot);
+            }
             KeyCode::Char('w') if !allow_writes => {
                 b.result = Some("read-only: start top with --allow-writes to write".into());
             }
@@ -1038,6 +1085,41 @@ impl Model {
         };
         *at = at.saturating_add_signed(by).min(len.saturating_sub(1));
     }
+}
+
+/// The most entries of a node the browser adds to the polls for the plot.
+pub const KEEP_WATCHED: usize = 8;
+
+/// A value of a numeric type from its little-endian bytes (`None`: not a number).
+fn number(le: &[u8; 8], data_type: DataType) -> Option<f64> {
+    let u = u64::from_le_bytes(*le);
+    let signed = |bits: u32| {
+        let v = u & (u64::MAX >> (64 - bits));
+        (if bits < 64 && v >> (bits - 1) & 1 == 1 { (v | !0u64 << bits) as i64 } else { v as i64 }) as f64
+    };
+    let unsigned = |bits: u32| (u & (u64::MAX >> (64 - bits))) as f64;
+    Some(match data_type {
+        DataType::Boolean => unsigned(1),
+        DataType::Integer8 => signed(8),
+        DataType::Integer16 => signed(16),
+        DataType::Integer24 => signed(24),
+        DataType::Integer32 => signed(32),
+        DataType::Integer40 => signed(40),
+        DataType::Integer48 => signed(48),
+        DataType::Integer56 => signed(56),
+        DataType::Integer64 => signed(64),
+        DataType::Unsigned8 => unsigned(8),
+        DataType::Unsigned16 => unsigned(16),
+        DataType::Unsigned24 => unsigned(24),
+        DataType::Unsigned32 => unsigned(32),
+        DataType::Unsigned40 => unsigned(40),
+        DataType::Unsigned48 => unsigned(48),
+        DataType::Unsigned56 => unsigned(56),
+        DataType::Unsigned64 => unsigned(64),
+        DataType::Real32 => f64::from(f32::from_bits(u as u32)),
+        DataType::Real64 => f64::from_bits(u),
+        _ => return None,
+    })
 }
 
 /// The short name of an NMT state.

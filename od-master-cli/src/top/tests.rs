@@ -247,6 +247,32 @@ async fn top_object_browser_searches_reads_and_writes_only_when_allowed() {
     assert!(r.model.requests.is_empty());
     r.key(KeyCode::Esc);
     assert!(r.model.browser.is_none());
+
+    // An entry plotted from the browser: a text is refused; a number is polled from now on at the
+    // poll period and shown in the plot under its EDS name.
+    let search = |r: &mut Rig, text: &str| {
+        r.key(KeyCode::Char('/'));
+        for c in text.chars() {
+            r.key(KeyCode::Char(c));
+        }
+        r.key(KeyCode::Enter);
+    };
+    r.key(KeyCode::Char('o'));
+    search(&mut r, "1008");
+    r.key(KeyCode::Char('g'));
+    let said = r.model.browser.as_ref().and_then(|b| b.result.clone()).unwrap_or_default();
+    assert_eq!(said, "1008h:0 is not a readable number: it cannot be plotted");
+    r.key(KeyCode::Esc);
+    r.key(KeyCode::Char('o'));
+    search(&mut r, "1017");
+    r.key(KeyCode::Char('g'));
+    assert!(r.model.browser.is_none());
+    assert_eq!(r.model.plot.as_ref().map(|p| p.shown.clone()), Some(vec![(2, 0x1017, 0)]));
+    r.pass(600).await;
+    let s = &r.model.nodes[&2].series[&(0x1017, 0)];
+    assert_eq!(s.label, "Producer heartbeat time");
+    assert!(s.points.len() >= 2, "polled every 200 ms: {s:?}");
+    assert_eq!(s.points.back().map(|p| p.1), Some(250.0));
 }
 
 /// The nodes of networks/example.toml listed under the description's names before they are

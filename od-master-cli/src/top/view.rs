@@ -446,7 +446,7 @@ fn draw_keys(f: &mut Frame, m: &Model, area: Rect) {
     } else if m.plot.is_some() {
         Line::from(" \u{2190}\u{2192} pick  Space add/remove  c clear  g/Esc back  q quit")
     } else if m.browser.is_some() {
-        Line::from(" Enter read  w write  / search  \u{2191}\u{2193} select  Esc back  q quit")
+        Line::from(" Enter read  w write  g plot  / search  \u{2191}\u{2193} select  Esc back  q quit")
     } else {
         Line::from(" q quit  Tab pane  \u{2191}\u{2193} select  o objects  g plot  p pause  / filter")
     };
