@@ -415,3 +415,42 @@ fn a_series_keeps_four_points_a_bucket() {
     assert_eq!(last.iter().map(|p| p.1).fold(f64::MIN, f64::max), 6.0);
     assert!(last.windows(2).all(|w| w[0].0 < w[1].0), "{last:?}");
 }
+
+/// Units that do not fit the terminal's height are said, not dropped silently; a tiny terminal
+/// draws without a panic.
+#[test]
+fn a_plot_says_which_units_do_not_fit() {
+    let no_devices = BTreeMap::new();
+    let mut m = Model::new("mem://x");
+    m.on_frame(Duration::ZERO, 0x702, false, &[0x05], &no_devices);
+    let row = m.nodes.get_mut(&2).unwrap();
+    row.watched = vec![
+        (0x1017, 0, eds::DataType::Unsigned16, "heartbeat".into()),
+        (0x1018, 1, eds::DataType::Unsigned32, "vendor".into()),
+        (0x1000, 0, eds::DataType::Unsigned32, "device type".into()),
+    ];
+    for ms in [100, 200, 300] {
+        for (index, sub) in [(0x1017, 0), (0x1018, 1), (0x1000, 0)] {
+            m.on_polled(Duration::from_millis(ms), 2, index, sub, Some(&[ms as u8, 0, 0, 0]));
+        }
+    }
+    let shown = vec![(2, 0x1017, 0), (2, 0x1018, 1), (2, 0x1000, 0)];
+    m.plot = Some(super::model::Plot { pick: shown[0], shown });
+    let screen = |width, height| {
+        let mut t = Terminal::new(TestBackend::new(width, height)).unwrap();
+        t.draw(|f| view::draw(f, &m, Duration::from_millis(400))).unwrap();
+        let buf = t.backend().buffer().clone();
+        (0..buf.area.height)
+            .map(|y| (0..buf.area.width).map(|x| buf[(x, y)].symbol()).collect::<String>())
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    let big = screen(80, 24);
+    assert!(big.contains("[raw] ⣿ 2 heartbeat 44") && big.contains("2 device type 44"), "{big}");
+    assert!(!big.contains("more units"), "{big}");
+    let small = screen(80, 16);
+    assert!(small.contains("2 series in 2 more units: a taller terminal shows them"), "{small}");
+    for (w, h) in [(80, 8), (20, 5), (1, 1)] {
+        screen(w, h);
+    }
+}
