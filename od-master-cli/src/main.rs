@@ -141,8 +141,8 @@ enum Cmd {
         master_dcf: Option<PathBuf>,
     },
     /// A live full-screen view of the network: its nodes (NMT state, heartbeat, last EMCY,
-    /// CiA 402 state, mode, position, velocity), its events and its frames in words, and an
-    /// object browser (o). q quits.
+    /// CiA 402 state, mode, position, velocity), its events and its frames in words, an object
+    /// browser (o) and plots of any values, several at once (g). q quits.
     Top {
         /// A network description (networks/*.toml) or one DCF per node: its nodes are listed
         /// from the start under their names, with their device files, sidecars and configured
@@ -152,9 +152,9 @@ enum Cmd {
         /// Let the object browser write (each write confirmed); read-only without it.
         #[arg(long)]
         allow_writes: bool,
-        /// How often a drive's statusword, mode, position and velocity are read by SDO when no
-        /// TPDO carries them, in milliseconds; 0: never (leaves the SDO channels to another
-        /// master).
+        /// How often a drive's statusword, mode, position and velocity (when no TPDO carries
+        /// them) and the entries picked for a plot are read by SDO, in milliseconds; 0: never
+        /// (leaves the SDO channels to another master).
         #[arg(long, default_value_t = 200, value_name = "MS")]
         poll_ms: u64,
     },
