@@ -7,6 +7,10 @@ frames it saw and dropped, and whether every EMCY reached the events.
 
     cargo build --release -p drive --bin drive-sim -p od-master-cli
     $(bash scripts/venv.sh) scripts/bench_top.py target/release/drive-sim target/release/od-master
+
+With `--plot`, top reads a network description of the eight nodes (DRVIs whose TPDO1 carries
+statusword and position, as the frames sent do) and, one second into the load, opens a plot of
+four series in two panels: the redraw figures are then those of the plot.
 """
 import json
 import os
@@ -17,8 +21,10 @@ import tempfile
 import time
 import uuid
 
-SIM, TOP = sys.argv[1], sys.argv[2]
-RATE = int(sys.argv[3]) if len(sys.argv) > 3 else 8000
+PLOT = "--plot" in sys.argv
+ARGS = [a for a in sys.argv[1:] if a != "--plot"]
+SIM, TOP = ARGS[0], ARGS[1]
+RATE = int(ARGS[2]) if len(ARGS) > 2 else 8000
 SECONDS = 10.0
 
 hub = subprocess.Popen([SIM, "hub", "--listen", "127.0.0.1:0", "--quiet"], stdout=subprocess.PIPE, text=True)
@@ -40,10 +46,20 @@ def expect(sock, what):
     assert what in data.decode(), data
 
 
+network = ""
+if PLOT:
+    network = os.path.join(os.path.dirname(stats), "bench.toml")
+    drvi = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "devices", "camozzi-drvi.eds")
+    with open(network, "w") as f:
+        f.write('[network]\nname = "bench"\nbaud_rate = 1000\n')
+        for n in range(10, 18):
+            f.write(f'[nodes.n{n}]\ndevice = "{drvi}"\nnode_id = {n}\n')
+            f.write(f'[nodes.n{n}.tpdo1]\nmap = ["statusword", "position_actual_value"]\n')
+
 try:
     env = f"OD_MASTER_TOP_STATS={stats}"
     subprocess.run(
-        tmux + ["new-session", "-d", "-x", "80", "-y", "24", f"{env} exec {TOP} --bus socketcand://{addr}/can0 top"],
+        tmux + ["new-session", "-d", "-x", "80", "-y", "24", f"{env} exec {TOP} --bus socketcand://{addr}/can0 top {network}"],
         check=True,
     )
     pid = int(subprocess.run(tmux + ["display", "-p", "#{pane_pid}"], capture_output=True, text=True).stdout)
@@ -74,6 +90,10 @@ try:
             emcys += 1
         s.sendall("".join(out).encode())
         sent += len(out)
+        if PLOT and tick == 200:
+            # Node 10's position; node 11's statusword and position; node 12's position.
+            keys = ["g", "Right", "Space", "Right", "Space", "Right", "Right", "Space"]
+            subprocess.run(tmux + ["send-keys", *keys], check=True)
         tick += 1
         time.sleep(max(0.0, t0 + tick * 0.005 - time.monotonic()))
     elapsed = time.monotonic() - t0

@@ -141,15 +141,20 @@ enum Cmd {
         master_dcf: Option<PathBuf>,
     },
     /// A live full-screen view of the network: its nodes (NMT state, heartbeat, last EMCY,
-    /// CiA 402 state, mode, position, velocity), its events and its frames in words, and an
-    /// object browser (o). q quits.
+    /// CiA 402 state, mode, position, velocity), its events and its frames in words, an object
+    /// browser (o) and plots of any values, several at once (g). q quits.
     Top {
+        /// A network description (networks/*.toml) or one DCF per node: its nodes are listed
+        /// from the start under their names, with their device files, sidecars and configured
+        /// PDOs (--eds NODE=FILE adds nodes or replaces one's file).
+        #[arg(value_name = "NETWORK")]
+        files: Vec<PathBuf>,
         /// Let the object browser write (each write confirmed); read-only without it.
         #[arg(long)]
         allow_writes: bool,
-        /// How often a drive's statusword, mode, position and velocity are read by SDO when no
-        /// TPDO carries them, in milliseconds; 0: never (leaves the SDO channels to another
-        /// master).
+        /// How often a drive's statusword, mode, position and velocity (when no TPDO carries
+        /// them) and the entries picked for a plot are read by SDO, in milliseconds; 0: never
+        /// (leaves the SDO channels to another master).
         #[arg(long, default_value_t = 200, value_name = "MS")]
         poll_ms: u64,
     },
@@ -300,6 +305,7 @@ async fn run(args: Args) -> Result<(), Fail> {
             }
             Some(network)
         }
+        Cmd::Top { files, .. } if !files.is_empty() => Some(cli::boot::load(files).map_err(usage)?),
         _ => None,
     };
     let Some(addr) = args.bus.clone() else { return Err(usage("--bus ADDR is required")) };
@@ -390,9 +396,10 @@ async fn run(args: Args) -> Result<(), Fail> {
             cli::run::run(bus.clone(), network, args.json).await.map_err(|e| Fail(1, e))?;
         }
         Cmd::Monitor { count, duration } => monitor(&bus, &devices, count, duration, args.json).await?,
-        Cmd::Top { allow_writes, poll_ms } => {
+        Cmd::Top { allow_writes, poll_ms, .. } => {
             let poll = (poll_ms > 0).then(|| Duration::from_millis(poll_ms.max(20)));
-            top::run(&bus, &addr, &args.eds, allow_writes, poll).await.map_err(|e| Fail(1, e))?
+            let network = network.unwrap_or_default();
+            top::run(&bus, &addr, &args.eds, &network, allow_writes, poll).await.map_err(|e| Fail(1, e))?
         }
         Cmd::Axis { node, action } => {
             let node = node_id(&node.to_string())?;

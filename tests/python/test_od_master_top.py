@@ -127,3 +127,40 @@ def test_top_shows_the_drives_follows_keys_and_restores_the_terminal(od_master, 
     # The terminal is back in cooked mode: a line typed is echoed and run.
     tmux.keys("echo cooked-$((20+22))", "Enter")
     tmux.wait_for(lambda s: "cooked-42" in s, "the shell answering")
+
+
+def test_top_lists_a_network_description_and_plots_several_values(od_master, bus, tmux):
+    """`top networks/example.toml`: the described nodes listed under their names before they are
+    heard; booted with `od-master boot` of the same file, they come alive; the DRVI turning, its
+    plot opens on position and velocity (two units, two panels) and a third value is added."""
+    network = ROOT / "networks" / "example.toml"
+    command = " ".join([str(od_master), "--bus", bus, "top", str(network)])
+    tmux.run("new-session", "-d", "-s", "top", "-x", "80", "-y", "24", "sh")
+    tmux.keys(f"{command}; echo top-exited-$?", "Enter")
+    screen = tmux.wait_for(lambda s: all(n in s for n in ("x_axis", "y_axis", "z_axis")), "the described nodes")
+    assert screen.count("not heard") == 3, screen
+
+    cli(od_master, bus, "boot", str(network))
+    tmux.wait_for(lambda s: s.count(" oper ") >= 3 and s.count("alive") >= 3, "the network booted and alive")
+    for accel in ("0x6083", "0x6084"):  # profile acceleration and deceleration
+        cli(od_master, bus, "write", "2", accel, "u32:50000")
+    cli(od_master, bus, "axis", "2", "enable")
+    cli(od_master, bus, "axis", "2", "velocity", "5000")
+    tmux.wait_for(lambda s: "op enabled" in s and "50.00rpm" in s, "x_axis turning at 50 rpm")
+
+    # g: the selected node's (x_axis, node 2) position and velocity, one panel each.
+    tmux.keys("g")
+    screen = tmux.wait_for(lambda s: "Plot: 2 series" in s, "the plot")
+    assert "[deg]" in screen and "2 position" in screen, screen
+    assert "[rpm]" in screen and "2 velocity" in screen, screen
+    # The picker one back (its statusword, which the configured TPDO1 carries), Space adds it.
+    tmux.keys("Left")
+    tmux.wait_for(lambda s: "node 2 statusword [raw]  (Space adds)" in s, "the statusword picked")
+    tmux.keys("Space")
+    screen = tmux.wait_for(lambda s: "Plot: 3 series" in s, "three series")
+    assert "[raw]" in screen and "2 statusword" in screen, screen
+    tmux.keys("Escape")
+    tmux.wait_for(lambda s: "Events" in s, "the events back")
+    tmux.keys("q")
+    tmux.wait_for(lambda s: "top-exited-0" in s, "top's exit")
+    assert tmux.run("display", "-p", "-t", "top", "#{alternate_on}").stdout.strip() == "0"

@@ -43,6 +43,9 @@ pub struct Device {
     pub sidecar: Option<Sidecar>,
     /// [`pdos`](Self::pdos) by node, worked out once.
     pdos: RefCell<BTreeMap<u8, Rc<[Pdo]>>>,
+    /// Values a network's configuration writes ([`configure`](Self::configure)), over the
+    /// file's.
+    configured: BTreeMap<(u16, u8), i128>,
 }
 
 impl Device {
@@ -62,10 +65,25 @@ impl Device {
         } else {
             None
         };
-        Ok(Self { model, names, sidecar, pdos: RefCell::default() })
+        Ok(Self { model, names, sidecar, pdos: RefCell::default(), configured: BTreeMap::new() })
+    }
+
+    /// Takes the writes a network's boot makes (its plan, in order; the last write of an entry
+    /// wins): the PDOs are then those the network configures, not the file's defaults.
+    pub fn configure<'a>(&mut self, writes: impl IntoIterator<Item = (u16, u8, &'a [u8])>) {
+        for (index, sub, data) in writes {
+            let mut le = [0u8; 16];
+            let n = data.len().min(16);
+            le[..n].copy_from_slice(&data[..n]);
+            self.configured.insert((index, sub), i128::from_le_bytes(le));
+        }
+        self.pdos.borrow_mut().clear();
     }
 
     fn value(&self, index: u16, sub: u8, node: u8) -> Option<i128> {
+        if let Some(&v) = self.configured.get(&(index, sub)) {
+            return Some(v);
+        }
         let e = self.model.entry(index, sub)?;
         e.parameter_value().or(e.default.as_ref()).and_then(|v: &Value| v.resolve(node))
     }

@@ -11,10 +11,11 @@ mod tests;
 pub mod view;
 
 use std::collections::BTreeMap;
+use std::path::Path;
 use std::time::Duration;
 
 use crossterm::event::{Event as TermEvent, KeyEvent, KeyEventKind};
-use od_master::{Bus, Event, Watch};
+use od_master::{Bus, Event, Network, Watch};
 use ratatui::Terminal;
 use ratatui::backend::Backend;
 use tokio::sync::broadcast::error::TryRecvError;
@@ -172,7 +173,29 @@ pub async fn run_loop<B: Backend>(
     }
 }
 
-/// `od-master top` in this terminal, with the devices of `eds` (the `--eds` arguments).
+/// The devices by node, and the nodes of a network description with their names.
+pub type Described = (BTreeMap<u8, Device>, Vec<(u8, String)>);
+
+/// The devices of a network description's nodes (each with its EDS or DCF, the sidecar beside
+/// it and the PDOs the network configures: the writes of its boot plan) and of the `--eds
+/// NODE=FILE` arguments (which add nodes or replace a described node's file); and the described
+/// nodes with their names, listed before they are heard.
+pub fn devices(network: &Network, eds: &[String]) -> Result<Described, String> {
+    let mut devices = BTreeMap::new();
+    let mut listed = Vec::new();
+    for node in &network.nodes {
+        let mut device = Device::load(Path::new(&node.device)).map_err(|e| format!("node `{}`: {e}", node.name))?;
+        device.configure(node.plan.writes.iter().map(|w| (w.index, w.sub, w.data.as_slice())));
+        devices.insert(node.node_id, device);
+        listed.push((node.node_id, node.name.clone()));
+    }
+    let given = crate::Devices::load(eds).map_err(|crate::Fail(_, m)| m)?;
+    devices.extend(given.by_node);
+    Ok((devices, listed))
+}
+
+/// `od-master top` in this terminal, with the nodes of `network` and the devices of `eds` (the
+/// `--eds` arguments).
 ///
 /// The view runs on a thread of its own (its own one-thread runtime): the bus's task keeps this
 /// one, so drawing never delays the reading of the bus (on a current-thread runtime a redraw
@@ -181,6 +204,7 @@ pub async fn run(
     bus: &Bus,
     addr: &str,
     eds: &[String],
+    network: &Network,
     allow_writes: bool,
     poll: Option<Duration>,
 ) -> Result<(), String> {
@@ -188,14 +212,15 @@ pub async fn run(
     if !std::io::stdout().is_terminal() {
         return Err("top needs a terminal: run it in one (for a log, use `monitor`)".into());
     }
-    let (bus, addr, eds) = (bus.clone(), addr.to_owned(), eds.to_vec());
+    let (bus, addr, eds, network) = (bus.clone(), addr.to_owned(), eds.to_vec(), network.clone());
     tokio::task::spawn_blocking(move || {
-        let devices = crate::Devices::load(&eds).map_err(|crate::Fail(_, m)| m)?;
+        // Loaded here: a Device is not Send. A bad file is said before the terminal is taken.
+        let (devices, listed) = devices(&network, &eds)?;
         let runtime = tokio::runtime::Builder::new_current_thread()
             .enable_all()
             .build()
             .map_err(|e| format!("cannot start the view's runtime: {e}"))?;
-        runtime.block_on(view_main(&bus, &addr, &devices.by_node, allow_writes, poll))
+        runtime.block_on(view_main(&bus, &addr, &devices, &listed, allow_writes, poll))
     })
     .await
     .map_err(|e| format!("the view stopped: {e}"))?
@@ -205,6 +230,7 @@ async fn view_main(
     bus: &Bus,
     addr: &str,
     devices: &BTreeMap<u8, Device>,
+    listed: &[(u8, String)],
     allow_writes: bool,
     poll: Option<Duration>,
 ) -> Result<(), String> {
@@ -224,6 +250,9 @@ async fn view_main(
     let mut model = Model::new(addr);
     model.allow_writes = allow_writes;
     model.poll = poll;
+    for (id, name) in listed {
+        model.list(*id, name, devices);
+    }
     let mut feed = Feed::new(bus);
     let result = run_loop(&mut terminal, bus, devices, &mut model, &mut feed, &mut keys).await;
     ratatui::try_restore().map_err(|e| format!("cannot restore the terminal: {e}"))?;

@@ -62,6 +62,10 @@ pub const DRIVE_OBJECTS: [u16; 4] = [0x6041, 0x6061, 0x6064, 0x606C];
 /// How often the drive objects no TPDO carries are read, by default.
 pub const POLL: Duration = Duration::from_millis(200);
 
+/// How long top's polls of a node wait after another master's SDO request to it: two masters
+/// on one SDO channel take each other's answers (CiA 301 gives a node one server channel).
+pub const YIELD: Duration = Duration::from_secs(2);
+
 /// Objects to read from a node by SDO, and why.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Poll {
@@ -90,6 +94,11 @@ pub struct NodeRow {
     pub emcy: Option<LastEmcy>,
     /// For a CiA 402 device.
     pub drive: Option<Drive>,
+    /// Heard from (a node of a network description is listed before it is).
+    pub seen: bool,
+    /// When another master's SDO request to it was last seen (top's own are not among the
+    /// frames): its polls wait [`YIELD`] after it, not to answer for the other's transfers.
+    pub other_master: Option<Duration>,
     /// A poll of this node is under way.
     pub polling: bool,
     /// When it was last polled.
@@ -102,6 +111,8 @@ pub struct NodeRow {
     pub units: [Option<(&'static str, f64)>; 2],
     /// The values its TPDOs carried and the polls read, over time, for the plots.
     pub series: BTreeMap<(u16, u8), Series>,
+    /// Entries picked in the object browser to plot (`g`): read at every poll, by type.
+    pub watched: Vec<(u16, u8, DataType, String)>,
 }
 
 /// A value over time: (seconds since the view started, raw value).
@@ -113,8 +124,42 @@ pub struct Series {
     pub points: VecDeque<(f64, f64)>,
 }
 
-/// The points a series keeps.
-pub const KEEP_POINTS: usize = 2000;
+/// A series of a node: (node, index, sub-index).
+pub type SeriesKey = (u8, u16, u8);
+
+/// The most series one plot shows (each its colour).
+pub const PLOT_SERIES: usize = 6;
+/// The most units one plot shows (each unit a panel with its own y-axis).
+pub const PLOT_UNITS: usize = 3;
+
+/// The plot: the series it shows, and the one the picker is on.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plot {
+    /// Shown, in the order added (which gives their colours).
+    pub shown: Vec<SeriesKey>,
+    /// The series the picker is on (added or removed by Space).
+    pub pick: SeriesKey,
+}
+
+/// The unit of a series on a plot's y-axis: the panel it goes to (series of one unit share a
+/// y-axis), the unit's symbol, and physical per raw. Raw values share a panel only with the
+/// same object's values (a statusword and a mode have nothing in common but being raw).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlotUnit {
+    /// Series with the same panel share a y-axis.
+    pub panel: String,
+    /// `deg`, `rpm`, ... or `raw`.
+    pub symbol: &'static str,
+    /// Physical per raw (1 for raw).
+    pub per_raw: f64,
+}
+
+/// The points a series keeps: 30 s at four points a [`BUCKET`], whatever the rate.
+pub const KEEP_POINTS: usize = 3000;
+/// A series keeps the first, lowest, highest and last value of each 40 ms (a TPDO every
+/// millisecond would otherwise fill [`KEEP_POINTS`] in 3 s; a plot of 30 s has about 150 dots
+/// across, 200 ms each).
+pub const BUCKET: f64 = 0.040;
 /// The series a node keeps.
 pub const KEEP_SERIES: usize = 32;
 
@@ -145,26 +190,54 @@ impl NodeRow {
             lost: false,
             emcy: None,
             drive,
+            seen: false,
+            other_master: None,
             polling: false,
             polled: None,
             name_asked,
             unit_values: None,
             units: [None, None],
             series: BTreeMap::new(),
+            watched: Vec::new(),
         }
     }
 
-    fn record(&mut self, index: u16, sub: u8, label: Option<String>, at: Duration, value: f64) {
-        if self.series.len() >= KEEP_SERIES && !self.series.contains_key(&(index, sub)) {
-            return;
+    /// A value of a series; `label` names a new series (asked once: on a busy bus this runs
+    /// for every field of every TPDO).
+    fn record(&mut self, index: u16, sub: u8, label: impl FnOnce() -> String, at: Duration, value: f64) {
+        if !self.series.contains_key(&(index, sub)) {
+            if self.series.len() >= KEEP_SERIES {
+                return;
+            }
+            self.series.insert((index, sub), Series { label: label(), points: VecDeque::new() });
         }
-        let s = self.series.entry((index, sub)).or_default();
-        if let Some(label) = label {
-            s.label = label;
-        } else if s.label.is_empty() {
-            s.label = format!("{index:04X}h:{sub}");
+        let Some(s) = self.series.get_mut(&(index, sub)) else { return };
+        let t = at.as_secs_f64();
+        // The points of this bucket (at the end) and this one become the bucket's first, lowest,
+        // highest and last, in time order: a brief spike stays.
+        let bucket = |t: f64| (t / BUCKET).floor();
+        let mut run = [(0.0, 0.0); 5];
+        let mut n = 0;
+        while n < 4
+            && let Some(&p) = s.points.back()
+            && bucket(p.0) == bucket(t)
+        {
+            s.points.pop_back();
+            n += 1;
+            run[4 - n] = p;
         }
-        s.points.push_back((at.as_secs_f64(), value));
+        let run = &mut run[4 - n..];
+        run[n] = (t, value);
+        let pick = |better: fn(f64, f64) -> bool| {
+            (0..run.len()).fold(0, |best, i| if better(run[i].1, run[best].1) { i } else { best })
+        };
+        let mut keep = [0, pick(|a, b| a < b), pick(|a, b| a > b), run.len() - 1];
+        keep.sort_unstable();
+        for (k, &i) in keep.iter().enumerate() {
+            if k == 0 || keep[k - 1] != i {
+                s.points.push_back(run[i]);
+            }
+        }
         if s.points.len() > KEEP_POINTS {
             s.points.pop_front();
         }
@@ -396,8 +469,8 @@ pub struct Model {
     pub watch: Vec<(u8, Duration)>,
     /// The object browser, when open.
     pub browser: Option<Browser>,
-    /// The plot, when open: the node and its series shown (an index among its series).
-    pub plot: Option<(u8, usize)>,
+    /// The plot, when open.
+    pub plot: Option<Plot>,
     /// The loop's own figures.
     pub stats: Stats,
     /// Reads and writes the browser asks for.
@@ -437,8 +510,18 @@ impl Model {
         }
     }
 
+    /// The row of a node heard from.
     fn node(&mut self, id: u8, devices: &BTreeMap<u8, Device>) -> &mut NodeRow {
-        self.nodes.entry(id).or_insert_with(|| NodeRow::new(id, devices.get(&id)))
+        let row = self.nodes.entry(id).or_insert_with(|| NodeRow::new(id, devices.get(&id)));
+        row.seen = true;
+        row
+    }
+
+    /// A node of the network description: listed under `name` before it is heard.
+    pub fn list(&mut self, id: u8, name: &str, devices: &BTreeMap<u8, Device>) {
+        let row = self.nodes.entry(id).or_insert_with(|| NodeRow::new(id, devices.get(&id)));
+        row.name = Some(name.to_owned());
+        row.name_asked = true;
     }
 
     /// A line among the events.
@@ -481,7 +564,7 @@ impl Model {
                     self.log(at, format!("node {node}: recovered, {}", nmt_long(state)));
                 }
                 NodeEvent::NeverSeen { node } => {
-                    self.node(node, devices).lost = true;
+                    self.nodes.entry(node).or_insert_with(|| NodeRow::new(node, devices.get(&node))).lost = true;
                     self.log(at, format!("node {node}: never heard from"));
                 }
                 ref other => self.log(at, format!("{other:?}")),
@@ -538,6 +621,17 @@ impl Model {
                 drive_fields(self.node(node, devices), device, node, id, data, at);
             }
         }
+        // Another master's SDO request (top's own are not among the frames): top's polls of
+        // that node wait, said once among the events.
+        if let (Some(node), "sdo-request") = (d.node, d.kind)
+            && let Some(row) = self.nodes.get_mut(&node)
+        {
+            let quiet = row.other_master.is_none_or(|t| at.saturating_sub(t) >= YIELD);
+            row.other_master = Some(at);
+            if quiet && self.poll.is_some() {
+                self.log(at, format!("node {node}: another master's SDO: top's polls of it wait"));
+            }
+        }
         if !self.paused {
             self.frames.push_front(FrameLine { at, kind: d.kind, node: d.node, text: d.text });
             self.frames.truncate(KEEP_FRAMES);
@@ -551,7 +645,7 @@ impl Model {
         let mut out = Vec::new();
         let Some(period) = self.poll else { return out };
         for row in self.nodes.values_mut() {
-            if row.polling || row.lost {
+            if row.polling || row.lost || !row.seen || row.other_master.is_some_and(|t| now.saturating_sub(t) < YIELD) {
                 continue;
             }
             let mut objects = Vec::new();
@@ -566,12 +660,15 @@ impl Model {
                 row.unit_values = Some(Vec::new());
                 objects.extend(units::objects(sidecar).iter().map(|o| (o.index, o.sub_or_zero())));
             }
-            if let Some(d) = &row.drive
+            if (row.drive.is_some() || !row.watched.is_empty())
                 && row.heard.is_some()
                 && row.polled.is_none_or(|t| now.saturating_sub(t) >= period)
             {
                 row.polled = Some(now);
-                objects.extend(DRIVE_OBJECTS.iter().filter(|i| !d.in_tpdo.contains(i)).map(|&i| (i, 0)));
+                if let Some(d) = &row.drive {
+                    objects.extend(DRIVE_OBJECTS.iter().filter(|i| !d.in_tpdo.contains(i)).map(|&i| (i, 0)));
+                }
+                objects.extend(row.watched.iter().map(|w| (w.0, w.1)));
             }
             if !objects.is_empty() {
                 row.polling = true;
@@ -594,6 +691,15 @@ impl Model {
             let bits = 8 * width.clamp(1, 8) as u32;
             if bits < 64 && v >> (bits - 1) & 1 == 1 { (v | !0u64 << bits) as i64 } else { v as i64 }
         };
+        if let Some((.., data_type, name)) = row.watched.iter().find(|w| (w.0, w.1) == (index, sub)) {
+            if let Some(v) = number(&le, *data_type) {
+                let name = name.clone();
+                row.record(index, sub, || name, at, v);
+            }
+            if !DRIVE_OBJECTS.contains(&index) {
+                return;
+            }
+        }
         if let Some(values) = &mut row.unit_values
             && !DRIVE_OBJECTS.contains(&index)
             && index != 0x1008
@@ -616,7 +722,7 @@ impl Model {
         }
         if matches!(index, 0x6064 | 0x606C) {
             let label = if index == 0x6064 { "position (polled)" } else { "velocity (polled)" };
-            row.record(index, sub, Some(label.into()), at, int(4) as f64);
+            row.record(index, sub, || label.into(), at, int(4) as f64);
         }
     }
 
@@ -646,6 +752,87 @@ impl Model {
                 row.units[slot] = Some((symbol, 1000.0 / f64::from(raw)));
             }
         }
+    }
+
+    /// Every series of every node, by node then object.
+    pub fn all_series(&self) -> impl Iterator<Item = SeriesKey> + '_ {
+        self.nodes.values().flat_map(|n| n.series.keys().map(move |&(i, s)| (n.id, i, s)))
+    }
+
+    /// A series' label and unit (`None`: no such series).
+    pub fn series_info(&self, (node, index, sub): SeriesKey) -> Option<(&Series, PlotUnit)> {
+        let row = self.nodes.get(&node)?;
+        let series = row.series.get(&(index, sub))?;
+        let unit = match row.unit_of(index, sub) {
+            Some((symbol, per_raw)) => PlotUnit { panel: symbol.to_owned(), symbol, per_raw },
+            None => PlotUnit { panel: format!("{index:04X}h:{sub}"), symbol: "raw", per_raw: 1.0 },
+        };
+        Some((series, unit))
+    }
+
+    /// Opens the plot on the selected node: its position and velocity when it has them, else
+    /// its first series.
+    fn open_plot(&mut self) {
+        let Some(n) = self.selected_node() else {
+            self.status = Some("no node selected".into());
+            return;
+        };
+        let Some(&(index, sub)) = n.series.keys().next() else {
+            self.status = Some(format!("node {}: no values to plot yet (TPDOs or polled)", n.id));
+            return;
+        };
+        let mut shown: Vec<SeriesKey> = [(0x6064, 0), (0x606C, 0)]
+            .iter()
+            .filter(|k| n.series.contains_key(k))
+            .map(|&(i, s)| (n.id, i, s))
+            .collect();
+        if shown.is_empty() {
+            shown.push((n.id, index, sub));
+        }
+        self.plot = Some(Plot { pick: shown[0], shown });
+    }
+
+    /// A key in the plot: the picker moves over every node's series, Space adds or removes the
+    /// picked one.
+    fn plot_key(&mut self, key: KeyEvent) {
+        let all: Vec<SeriesKey> = self.all_series().collect();
+        let Some(plot) = &self.plot else { return };
+        let (mut shown, pick) = (plot.shown.clone(), plot.pick);
+        let at = all.iter().position(|k| *k == pick).unwrap_or(0);
+        let mut pick = pick;
+        match key.code {
+            KeyCode::Esc | KeyCode::Char('g') => {
+                self.plot = None;
+                return;
+            }
+            KeyCode::Char('q') => self.quit = true,
+            KeyCode::Up | KeyCode::Left | KeyCode::Char('k') => {
+                pick = all.get(at.wrapping_sub(1)).copied().unwrap_or(pick)
+            }
+            KeyCode::Down | KeyCode::Right | KeyCode::Char('j') => pick = all.get(at + 1).copied().unwrap_or(pick),
+            KeyCode::Char('c') => shown.clear(),
+            KeyCode::Char(' ') | KeyCode::Enter => {
+                if let Some(i) = shown.iter().position(|k| *k == pick) {
+                    shown.remove(i);
+                } else if shown.len() >= PLOT_SERIES {
+                    self.status = Some(format!("a plot shows at most {PLOT_SERIES} series: remove one first (Space)"));
+                } else {
+                    let unit = |k| self.series_info(k).map(|(_, u)| u.panel);
+                    let mut panels: Vec<_> = shown.iter().filter_map(|&k| unit(k)).collect();
+                    panels.sort();
+                    panels.dedup();
+                    let new = unit(pick);
+                    if panels.len() >= PLOT_UNITS && !panels.contains(new.as_ref().unwrap_or(&String::new())) {
+                        self.status =
+                            Some(format!("a plot shows at most {PLOT_UNITS} units: remove a series of another first"));
+                    } else {
+                        shown.push(pick);
+                    }
+                }
+            }
+            _ => {}
+        }
+        self.plot = Some(Plot { shown, pick });
     }
 
     /// The frames the filter passes, newest first.
@@ -777,6 +964,38 @@ impl Model {
                     b.result = Some(format!("reading {index:04X}h:{sub}..."));
                 }
             }
+            KeyCode::Char('g') => {
+                let Some(e) = b.current().cloned() else { return };
+                let node = b.node;
+                let mut le = [0u8; 8];
+                le[0] = 1;
+                let readable = e.access.contains('r') || e.access == "const";
+                if number(&le, e.data_type).is_none() || !readable {
+                    b.result =
+                        Some(format!("{:04X}h:{} is not a readable number: it cannot be plotted", e.index, e.sub));
+                    return;
+                }
+                if self.poll.is_none() {
+                    b.result = Some("polling is off (--poll-ms 0): only TPDO values can be plotted".into());
+                    return;
+                }
+                let Some(row) = self.nodes.get_mut(&node) else { return };
+                if !row.watched.iter().any(|w| (w.0, w.1) == (e.index, e.sub)) {
+                    if row.watched.len() >= KEEP_WATCHED {
+                        b.result = Some(format!("at most {KEEP_WATCHED} entries a node are polled for plots"));
+                        return;
+                    }
+                    row.watched.push((e.index, e.sub, e.data_type, e.name.clone()));
+                }
+                let key = (node, e.index, e.sub);
+                self.browser = None;
+                let mut plot = self.plot.take().unwrap_or(Plot { shown: Vec::new(), pick: key });
+                if !plot.shown.contains(&key) && plot.shown.len() < PLOT_SERIES {
+                    plot.shown.push(key);
+                }
+                plot.pick = key;
+                self.plot = Some(plot);
+            }
             KeyCode::Char('w') if !allow_writes => {
                 b.result = Some("read-only: start top with --allow-writes to write".into());
             }
@@ -795,15 +1014,12 @@ impl Model {
             self.browser_key(key);
             return;
         }
-        if let Some((node, at)) = &mut self.plot {
-            let len = self.nodes.get(node).map_or(0, |n| n.series.len());
-            match key.code {
-                KeyCode::Esc | KeyCode::Char('g') => self.plot = None,
-                KeyCode::Char('q') => self.quit = true,
-                KeyCode::Up => *at = at.saturating_sub(1),
-                KeyCode::Down => *at = (*at + 1).min(len.saturating_sub(1)),
-                _ => {}
-            }
+        if self.input.is_none() {
+            // A message is said until the next key.
+            self.status = None;
+        }
+        if self.plot.is_some() {
+            self.plot_key(key);
             return;
         }
         if let Some(input) = &mut self.input {
@@ -846,11 +1062,7 @@ impl Model {
             }
             KeyCode::Char('p') => self.paused = !self.paused,
             KeyCode::Char('o') => self.open_browser(devices),
-            KeyCode::Char('g') => match self.selected_node() {
-                Some(n) if !n.series.is_empty() => self.plot = Some((n.id, 0)),
-                Some(n) => self.status = Some(format!("node {}: no values to plot yet (TPDOs or polled)", n.id)),
-                None => self.status = Some("no node selected".into()),
-            },
+            KeyCode::Char('g') => self.open_plot(),
             KeyCode::Enter if self.focus == Pane::Nodes => self.open_browser(devices),
             KeyCode::Char('/') => self.input = Some(self.filter.text()),
             KeyCode::Up | KeyCode::Char('k') => self.move_by(-1),
@@ -873,6 +1085,41 @@ impl Model {
         };
         *at = at.saturating_add_signed(by).min(len.saturating_sub(1));
     }
+}
+
+/// The most entries of a node the browser adds to the polls for the plot.
+pub const KEEP_WATCHED: usize = 8;
+
+/// A value of a numeric type from its little-endian bytes (`None`: not a number).
+fn number(le: &[u8; 8], data_type: DataType) -> Option<f64> {
+    let u = u64::from_le_bytes(*le);
+    let signed = |bits: u32| {
+        let v = u & (u64::MAX >> (64 - bits));
+        (if bits < 64 && v >> (bits - 1) & 1 == 1 { (v | !0u64 << bits) as i64 } else { v as i64 }) as f64
+    };
+    let unsigned = |bits: u32| (u & (u64::MAX >> (64 - bits))) as f64;
+    Some(match data_type {
+        DataType::Boolean => unsigned(1),
+        DataType::Integer8 => signed(8),
+        DataType::Integer16 => signed(16),
+        DataType::Integer24 => signed(24),
+        DataType::Integer32 => signed(32),
+        DataType::Integer40 => signed(40),
+        DataType::Integer48 => signed(48),
+        DataType::Integer56 => signed(56),
+        DataType::Integer64 => signed(64),
+        DataType::Unsigned8 => unsigned(8),
+        DataType::Unsigned16 => unsigned(16),
+        DataType::Unsigned24 => unsigned(24),
+        DataType::Unsigned32 => unsigned(32),
+        DataType::Unsigned40 => unsigned(40),
+        DataType::Unsigned48 => unsigned(48),
+        DataType::Unsigned56 => unsigned(56),
+        DataType::Unsigned64 => unsigned(64),
+        DataType::Real32 => f64::from(f32::from_bits(u as u32)),
+        DataType::Real64 => f64::from_bits(u),
+        _ => return None,
+    })
 }
 
 /// The short name of an NMT state.
@@ -948,11 +1195,11 @@ fn drive_fields(row: &mut NodeRow, device: &Device, node: u8, id: u32, data: &[u
         }
         // Signed, from its width, when its type is.
         let signed = if bits < 64 && v >> (bits - 1) & 1 == 1 { (v | !0u64 << bits) as i64 } else { v as i64 };
-        let is_signed =
-            device.model.entry(f.index, f.sub).is_some_and(|e| format!("{:?}", e.data_type).starts_with("Integer"));
-        let label =
-            device.names.name_of(f.index, f.sub).map_or_else(|| format!("{:04X}h:{}", f.index, f.sub), str::to_owned);
-        row.record(f.index, f.sub, Some(label), at, if is_signed { signed as f64 } else { v as f64 });
+        let is_signed = device.model.entry(f.index, f.sub).is_some_and(|e| e.data_type.name().starts_with("INTEGER"));
+        let label = || {
+            device.names.name_of(f.index, f.sub).map_or_else(|| format!("{:04X}h:{}", f.index, f.sub), str::to_owned)
+        };
+        row.record(f.index, f.sub, label, at, if is_signed { signed as f64 } else { v as f64 });
         let Some(drive) = &mut row.drive else { continue };
         if f.sub == 0 && DRIVE_OBJECTS.contains(&f.index) && !drive.in_tpdo.contains(&f.index) {
             drive.in_tpdo.push(f.index);

@@ -12,11 +12,12 @@ use ratatui::widgets::{
     Axis, Block, Borders, Cell, Chart, Dataset, GraphType, List, ListItem, ListState, Paragraph, Row, Table, TableState,
 };
 
-use super::model::{Browser, Health, Model, Pane, mode_name, nmt_name, state_name};
+use super::model::{Browser, Health, Model, Pane, Plot, PlotUnit, SeriesKey, mode_name, nmt_name, state_name};
 
 /// Draws the whole screen at `now` (the time since the view started).
 pub fn draw(f: &mut Frame, m: &Model, now: Duration) {
-    let nodes_height = (m.nodes.len() as u16 + 4).clamp(5, 12);
+    // The plot takes room from the nodes pane (the selected node's row stays in view).
+    let nodes_height = (m.nodes.len() as u16 + 4).clamp(5, if m.plot.is_some() { 7 } else { 12 });
     let [title, nodes, events, frames, keys] = Layout::vertical([
         Constraint::Length(1),
         Constraint::Length(nodes_height),
@@ -29,8 +30,8 @@ pub fn draw(f: &mut Frame, m: &Model, now: Duration) {
     draw_nodes(f, m, now, nodes);
     if let Some(b) = &m.browser {
         draw_browser(f, b, events.union(frames));
-    } else if let Some((node, at)) = m.plot {
-        draw_plot(f, m, node, at, now, events.union(frames));
+    } else if let Some(plot) = &m.plot {
+        draw_plot(f, m, plot, now, events.union(frames));
     } else {
         draw_events(f, m, events);
         draw_frames(f, m, frames);
@@ -38,35 +39,194 @@ pub fn draw(f: &mut Frame, m: &Model, now: Duration) {
     draw_keys(f, m, keys);
 }
 
-/// The last 30 s of one series of a node, in physical units where its sidecar gives them.
-fn draw_plot(f: &mut Frame, m: &Model, node: u8, at: usize, now: Duration, area: Rect) {
-    let Some(row) = m.nodes.get(&node) else { return };
-    let Some((&(index, sub), series)) = row.series.iter().nth(at) else { return };
-    let (unit, per_raw) = row.unit_of(index, sub).map_or(("raw", 1.0), |(u, k)| (u, k));
-    let t1 = now.as_secs_f64().max(30.0);
-    let t0 = t1 - 30.0;
-    let points: Vec<(f64, f64)> =
-        series.points.iter().filter(|(t, _)| *t >= t0).map(|&(t, v)| (t, v * per_raw)).collect();
-    let (lo, hi) = points.iter().fold((f64::MAX, f64::MIN), |(lo, hi), &(_, v)| (lo.min(v), hi.max(v)));
-    let (lo, hi) = if points.is_empty() {
-        (0.0, 1.0)
-    } else if (hi - lo).abs() < 1e-9 {
-        (lo - 1.0, hi + 1.0)
-    } else {
-        (lo - (hi - lo) * 0.05, hi + (hi - lo) * 0.05)
-    };
-    let title =
-        format!(" node {node} {} [{unit}] ({} of {}, \u{2191}\u{2193}) ", series.label, at + 1, row.series.len());
-    let dataset = Dataset::default()
-        .marker(symbols::Marker::Braille)
-        .graph_type(GraphType::Line)
-        .style(Style::new().fg(Color::Cyan))
-        .data(&points);
-    let chart = Chart::new(vec![dataset])
-        .block(block(title, true))
-        .x_axis(Axis::default().bounds([t0, t1]).labels([format!("{t0:.0}s"), format!("{t1:.0}s")]))
-        .y_axis(Axis::default().bounds([lo, hi]).labels([format!("{lo:.1}"), format!("{hi:.1}")]));
-    f.render_widget(chart, area);
+/// The colours of a plot's series, in the order they were added.
+const SERIES_COLOURS: [Color; 6] =
+    [Color::Cyan, Color::Yellow, Color::LightMagenta, Color::LightGreen, Color::LightRed, Color::LightBlue];
+/// The markers of the series within one panel, and the symbol the legend shows for each: a
+/// series told apart without colour too.
+const SERIES_MARKERS: [(symbols::Marker, &str); 3] = [
+    (symbols::Marker::Braille, "\u{28ff}"),
+    (symbols::Marker::Dot, "\u{2022}"),
+    (symbols::Marker::HalfBlock, "\u{2584}"),
+];
+
+/// The plot in place of the events and frames: the last 30 s of the series shown, one panel a
+/// unit (each with its own y-axis in that unit, all on one time axis; the series of a unit in one
+/// panel, each its colour and marker, named in the panel's legend line with its latest value),
+/// and the picker's line at the bottom.
+fn draw_plot(f: &mut Frame, m: &Model, plot: &Plot, now: Duration, area: Rect) {
+    // The last 30 s; until 30 s have passed, the time since the start, stretched.
+    let t1 = now.as_secs_f64().max(1.0);
+    let t0 = (t1 - 30.0).max(0.0);
+    // The panels, in the order their first series was added.
+    struct Shown<'a> {
+        key: SeriesKey,
+        label: &'a str,
+        colour: Color,
+        points: Vec<(f64, f64)>,
+    }
+    let mut panels: Vec<(PlotUnit, Vec<Shown>)> = Vec::new();
+    for (i, &key) in plot.shown.iter().enumerate() {
+        let Some((series, unit)) = m.series_info(key) else { continue };
+        let points = held(&series.points, t0, t1, unit.per_raw);
+        let shown = Shown { key, label: &series.label, colour: SERIES_COLOURS[i % SERIES_COLOURS.len()], points };
+        match panels.iter_mut().find(|(u, _)| u.panel == unit.panel) {
+            Some((_, list)) => list.push(shown),
+            None => panels.push((unit, vec![shown])),
+        }
+    }
+    let title = format!(" Plot: {} series, the last {:.0} s ", plot.shown.len(), t1 - t0);
+    let outer = block(title, true);
+    let inner = outer.inner(area);
+    f.render_widget(outer, area);
+    let [charts_area, pick_area] = Layout::vertical([Constraint::Fill(1), Constraint::Length(1)]).areas(inner);
+    // The picked series, and whether it is shown.
+    let pick = m.series_info(plot.pick).map_or(String::new(), |(s, u)| {
+        let on = if plot.shown.contains(&plot.pick) { "shown, Space removes" } else { "Space adds" };
+        format!("\u{25b8} node {} {} [{}]  ({on})", plot.pick.0, s.label, u.symbol)
+    });
+    f.render_widget(Paragraph::new(pick).style(Style::new().add_modifier(Modifier::BOLD)), pick_area);
+    if panels.is_empty() {
+        let hint = "no series shown: \u{2190}\u{2192} pick one, Space adds it";
+        f.render_widget(Paragraph::new(hint).style(Style::new().fg(Color::DarkGray)), charts_area);
+        return;
+    }
+    // As many panels as have room for a legend line and two rows of chart (eight dots of
+    // Braille; the time axis takes two more rows under the last one).
+    let fit = usize::from(charts_area.height.saturating_sub(2) / 3).max(1);
+    if panels.len() > fit {
+        let hidden: usize = panels[fit..].iter().map(|(_, list)| list.len()).sum();
+        let note = format!(" {hidden} series in {} more units: a taller terminal shows them ", panels.len() - fit);
+        f.render_widget(
+            Paragraph::new(Line::from(Span::styled(note, Style::new().fg(Color::Yellow))).right_aligned()),
+            Rect { height: 1, ..area },
+        );
+        panels.truncate(fit);
+    }
+    // Each panel's y range, and labels of one width, so that every panel's time axis starts in
+    // the same column.
+    let ranges: Vec<(f64, f64)> = panels
+        .iter()
+        .map(|(_, list)| {
+            let (lo, hi) = list
+                .iter()
+                .flat_map(|s| s.points.iter())
+                .fold((f64::MAX, f64::MIN), |(lo, hi), &(_, v)| (lo.min(v), hi.max(v)));
+            if lo > hi {
+                (0.0, 1.0)
+            } else if (hi - lo).abs() < 1e-9 {
+                (lo - 1.0, hi + 1.0)
+            } else {
+                (lo - (hi - lo) * 0.05, hi + (hi - lo) * 0.05)
+            }
+        })
+        .collect();
+    let label_width =
+        ranges.iter().flat_map(|&(lo, hi)| [axis_number(lo).len(), axis_number(hi).len()]).max().unwrap_or(1);
+    // Equal heights, the last panel two rows more for the time axis under it.
+    let n = panels.len() as u16;
+    let each = charts_area.height.saturating_sub(2) / n;
+    let areas =
+        Layout::vertical((0..n).map(|i| if i + 1 == n { Constraint::Fill(1) } else { Constraint::Length(each) }))
+            .split(charts_area);
+    for (i, ((unit, list), &(lo, hi))) in panels.iter().zip(&ranges).enumerate() {
+        let last = i + 1 == panels.len();
+        let [legend_area, chart_area] = Layout::vertical([Constraint::Length(1), Constraint::Fill(1)]).areas(areas[i]);
+        let mut legend = vec![Span::styled(format!("[{}]", unit.symbol), Style::new().add_modifier(Modifier::BOLD))];
+        for (j, s) in list.iter().enumerate() {
+            let (_, symbol) = SERIES_MARKERS[j % SERIES_MARKERS.len()];
+            let latest = s.points.last().map_or("-".to_owned(), |&(_, v)| axis_number(v));
+            legend.push(Span::styled(format!(" {symbol} {} {} {latest}", s.key.0, s.label), Style::new().fg(s.colour)));
+        }
+        f.render_widget(Paragraph::new(Line::from(legend)), legend_area);
+        let datasets: Vec<Dataset> = list
+            .iter()
+            .enumerate()
+            .map(|(j, s)| {
+                Dataset::default()
+                    .marker(SERIES_MARKERS[j % SERIES_MARKERS.len()].0)
+                    .graph_type(GraphType::Line)
+                    .style(Style::new().fg(s.colour))
+            })
+            .collect();
+        // At most four points a column of Braille dots (first, lowest, highest, last): what
+        // the chart can show of thousands, at a fraction of the drawing.
+        let columns = usize::from(chart_area.width.saturating_sub(label_width as u16 + 1)) * 2;
+        let thinned: Vec<Vec<(f64, f64)>> = list.iter().map(|s| thin(&s.points, t0, t1, columns)).collect();
+        let datasets: Vec<Dataset> = datasets.into_iter().zip(&thinned).map(|(d, p)| d.data(p)).collect();
+        let y_labels = [format!("{:>label_width$}", axis_number(lo)), format!("{:>label_width$}", axis_number(hi))];
+        let mut x_axis = Axis::default().bounds([t0, t1]);
+        if last {
+            x_axis = x_axis.labels([format!("{t0:.1}s"), format!("{t1:.1}s")]);
+        }
+        let chart = Chart::new(datasets)
+            .legend_position(None)
+            .x_axis(x_axis)
+            .y_axis(Axis::default().bounds([lo, hi]).labels(y_labels));
+        f.render_widget(chart, chart_area);
+    }
+}
+
+/// The points of a series from `t0` to `t1`, in physical units, as steps: each value holds until
+/// the next came (a TPDO sent on change says nothing between changes; a line drawn from one value
+/// to the next would show values never sent), the last until `t1`, the one before `t0` from `t0`.
+pub fn held(points: &std::collections::VecDeque<(f64, f64)>, t0: f64, t1: f64, per_raw: f64) -> Vec<(f64, f64)> {
+    let first = points.partition_point(|&(t, _)| t < t0);
+    let mut out = Vec::with_capacity(2 * (points.len() - first) + 2);
+    if let Some(&(_, v)) = first.checked_sub(1).and_then(|i| points.get(i)) {
+        out.push((t0, v * per_raw));
+    }
+    for &(t, v) in points.range(first..) {
+        if let Some(&(_, before)) = out.last() {
+            out.push((t, before));
+        }
+        out.push((t, v * per_raw));
+    }
+    if let Some(&(t, v)) = out.last()
+        && t < t1
+    {
+        out.push((t1, v));
+    }
+    out
+}
+
+/// `points` (in time order) with at most four a column when `t0..t1` spans `columns` columns:
+/// each column's first, lowest, highest and last, in time order.
+pub fn thin(points: &[(f64, f64)], t0: f64, t1: f64, columns: usize) -> Vec<(f64, f64)> {
+    if points.len() <= 4 * columns || columns == 0 || t1 <= t0 {
+        return points.to_vec();
+    }
+    let column = |t: f64| (((t - t0) / (t1 - t0) * columns as f64) as usize).min(columns - 1);
+    let mut out = Vec::with_capacity(4 * columns);
+    let mut start = 0;
+    while start < points.len() {
+        let c = column(points[start].0);
+        let end = start + points[start..].iter().take_while(|p| column(p.0) == c).count();
+        let run = &points[start..end];
+        let pick = |better: fn(f64, f64) -> bool| {
+            (0..run.len()).fold(0, |best, i| if better(run[i].1, run[best].1) { i } else { best })
+        };
+        let mut picked = [0, pick(|a, b| a < b), pick(|a, b| a > b), run.len() - 1];
+        picked.sort_unstable();
+        let mut last = None;
+        for i in picked {
+            if last != Some(i) {
+                out.push(run[i]);
+                last = Some(i);
+            }
+        }
+        start = end;
+    }
+    out
+}
+
+/// A number for an axis or a legend: fewer decimals as it grows.
+fn axis_number(v: f64) -> String {
+    match v.abs() {
+        a if a >= 1000.0 => format!("{v:.0}"),
+        a if a >= 10.0 => format!("{v:.1}"),
+        _ => format!("{v:.2}"),
+    }
 }
 
 /// The object browser in place of the events and frames: the entries the search passes around
@@ -151,6 +311,7 @@ fn draw_nodes(f: &mut Frame, m: &Model, now: Duration, area: Rect) {
     let rows = m.nodes.values().map(|n| {
         let (health, hb_age) = n.health(now);
         let (hb, hb_style) = match health {
+            Health::Unknown if !n.seen => ("not heard".to_owned(), Style::new().fg(Color::DarkGray)),
             Health::Unknown => ("-".to_owned(), Style::new()),
             Health::Alive => (format!("alive {}", hb_age.map(age).unwrap_or_default()), Style::new().fg(Color::Green)),
             Health::Late => (format!("late {}", hb_age.map(age).unwrap_or_default()), Style::new().fg(Color::Yellow)),
@@ -175,7 +336,9 @@ fn draw_nodes(f: &mut Frame, m: &Model, now: Duration, area: Rect) {
             Cell::new(d.mode.map_or("-".into(), mode_name)),
             Cell::new(format!("{:>9}", opt(d.position, n.units[0]))),
             Cell::new(format!("{:>9}", opt(d.velocity, n.units[1]))),
-            Cell::new(emcy).style(Style::new().fg(Color::Red)),
+            // Styled only when there is one: an empty red cell shows as a red block on the
+            // selected (reversed) row.
+            if emcy.is_empty() { Cell::new("") } else { Cell::new(emcy).style(Style::new().fg(Color::Red)) },
         ])
     });
     let widths = [
@@ -281,9 +444,9 @@ fn draw_keys(f: &mut Frame, m: &Model, area: Rect) {
     } else if let Some(status) = &m.status {
         Line::from(Span::styled(status.clone(), Style::new().fg(Color::Red)))
     } else if m.plot.is_some() {
-        Line::from(" \u{2191}\u{2193} series  g/Esc back  q quit")
+        Line::from(" \u{2190}\u{2192} pick  Space add/remove  c clear  g/Esc back  q quit")
     } else if m.browser.is_some() {
-        Line::from(" Enter read  w write  / search  \u{2191}\u{2193} select  Esc back  q quit")
+        Line::from(" Enter read  w write  g plot  / search  \u{2191}\u{2193} select  Esc back  q quit")
     } else {
         Line::from(" q quit  Tab pane  \u{2191}\u{2193} select  o objects  g plot  p pause  / filter")
     };
