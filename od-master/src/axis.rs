@@ -785,10 +785,7 @@ impl Axis {
             for &(bit, side) in &reg.limits {
                 if value & (1 << bit) != 0 {
                     let text = reg.text(bit).unwrap_or_default().to_owned();
-                    found.push(Limit {
-                        side,
-                        by: LimitSource::Register { index: reg.index, sub: reg.sub, bit, text },
-                    });
+                    found.push(Limit { side, by: LimitSource::Register { index: reg.index, sub: reg.sub, bit, text } });
                 }
             }
         }
@@ -828,10 +825,14 @@ impl Axis {
         if heading.sign == 0 {
             return Ok(());
         }
-        if let Some(limit) = self.active_limits(heading.target).await?.into_iter().find(|l| l.side == side_of(heading.sign)) {
+        if let Some(limit) =
+            self.active_limits(heading.target).await?.into_iter().find(|l| l.side == side_of(heading.sign))
+        {
             let what = heading.describe();
             let (index, sub) = limit_object(&limit);
-            return Err(self.explained(index, sub, AxisErrorKind::Impossible(Impossible::IntoLimit { limit, what })).await);
+            return Err(self
+                .explained(index, sub, AxisErrorKind::Impossible(Impossible::IntoLimit { limit, what }))
+                .await);
         }
         Ok(())
     }

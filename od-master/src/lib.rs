@@ -38,7 +38,8 @@ pub use axis::{Axis, AxisConfig, Homing, HomingMethod, Move, UnitAxis};
 pub use boot::{BootError, BootOptions, Network, NodeReport};
 pub use bus::{Bus, Config, CyclicPdo, Tpdo};
 pub use error::{
-    AxisError, AxisErrorKind, Error, Impossible, Interruption, Limit, LimitSource, RegisterReading, SdoContext, StopReason,
+    AxisError, AxisErrorKind, Error, Impossible, Interruption, Limit, LimitSource, RegisterReading, SdoContext,
+    StopReason,
 };
 pub use event::{EmcyTexts, Event};
 pub use node::{Node, SdoOptions, SdoValue};

@@ -10,8 +10,8 @@ use od_master::{
     AbortCode, Axis, AxisError, AxisErrorKind, Error, HomingMethod, Impossible, Limit, LimitSource, Move,
     RegisterReading, SdoContext, State, StatusRegister, StopReason, TransferError,
 };
-use od_sidecar::LimitSide;
 use od_runtime::master::{Direction, PdoError, SdoError};
+use od_sidecar::LimitSide;
 
 use crate::harness::{net, pass, sidecar};
 
@@ -298,10 +298,7 @@ async fn a_move_into_a_limit_switch_stops_the_wait_at_once() {
     // 2 turns at 4 turns/s: half a second, then at once.
     assert!(start.elapsed() < Duration::from_millis(1_500), "{:?}", start.elapsed());
     let Error::Axis(a) = &e else { panic!("{e}") };
-    assert!(
-        matches!(&a.kind, AxisErrorKind::Stopped { why: StopReason::AtLimit(_), .. }),
-        "{e}"
-    );
+    assert!(matches!(&a.kind, AxisErrorKind::Stopped { why: StopReason::AtLimit(_), .. }), "{e}");
     assert!(e.to_string().contains("internal limit active"), "{e}");
 }
 
