@@ -12,6 +12,34 @@
 //! | profile position: set-point handshake (bit 4 / bit 12), change set immediately, relative; target reached | 607Ah, 6081h, 6083h, 6084h | [`Axis::set_point`], [`Axis::move_to`] |
 //! | profile velocity | 60FFh, 6083h, 6084h | [`Axis::run_velocity`] |
 //! | cyclic synchronous position: a set-point every SYNC | 1400h+, 1600h+, 607Ah | [`Axis::cyclic_position`], [`Csp::send`] |
+//!
+//! # What cannot succeed fails at once
+//!
+//! * Modes: a mode of operation is checked against 6502h (supported drive modes, read once)
+//!   before anything is written, by [`Axis::set_mode`], [`Axis::home`], [`Axis::set_point`],
+//!   [`Axis::run_velocity`] and [`Axis::cyclic_position`]. A vendor's 6502h may leave out a
+//!   mode its drive runs (the AKD's 65h lacks profile torque and cyclic synchronous position):
+//!   the device's sidecar says so (`[[mode]] not_in_6502h = true`) and
+//!   [`Axis::with_sidecar`] takes it. A drive without 6502h is checked against its sidecar's
+//!   `[[mode]]` list, else not at all.
+//! * Limits: statusword bit 11 (internal limit active) is a level, not an edge: a drive that
+//!   stopped on its limit keeps it set. Before a move (and whenever bit 11 is set during its
+//!   wait) the axis finds out which limit it is: the limit switches of 60FDh (bit 0 negative,
+//!   bit 1 positive) where the drive has 60FDh, the software position limits 607Dh the position
+//!   is at or the target is beyond, and the limit bits of the drive's own register where its
+//!   sidecar names them (`[[warning]] limit = "positive"`: the DRVI's 2006h bits 6 and 7). A
+//!   move further into that limit is refused before anything is written
+//!   ([`Impossible::IntoLimit`](crate::Impossible::IntoLimit)), or its wait ends at once
+//!   ([`StopReason::AtLimit`](crate::StopReason::AtLimit)); a move away from it is taken and its
+//!   wait goes on while bit 11 stands. A bit 11 that comes up during a wait with no limit to be
+//!   found (a torque or velocity limit) ends it as before; one standing at the start does not.
+//! * Warnings: a warning (statusword bit 7) standing when a move starts does not refuse it and
+//!   does not end its wait: it was there before the move and the drive took the move (a
+//!   temperature warning, the warning of the limit switch a move leaves). Only a warning that
+//!   comes up during the wait ends it, with the drive's register read into the message. A
+//!   drive that refuses a command while its warning stands (the DRVI's "command refused"
+//!   latched from an earlier refusal) does not acknowledge the set-point: that wait ends after
+//!   [`AxisConfig::state_timeout`] (1 s), with the register in the message.
 
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
