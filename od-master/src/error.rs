@@ -410,7 +410,7 @@ pub enum Impossible {
     },
     /// The drive is at a position limit (statusword bit 11, internal limit active) and the
     /// move goes further into it; a move the other way is allowed.
-    #[error("the drive is at its {limit} and {what} goes further into it; a move the other way is allowed")]
+    #[error("the drive is limited by its {limit} and {what} goes further into it; a move the other way is allowed")]
     IntoLimit {
         /// Which limit, and what says so.
         limit: Limit,
@@ -500,7 +500,7 @@ pub enum StopReason {
     LeftOperationEnabled(Option<State>),
     /// Statusword bit 11 (internal limit active) is set and the limit is the one the move
     /// heads for.
-    #[error("the drive is at its {0}, in the direction of the move")]
+    #[error("the drive is limited by its {0}, in the direction of the move")]
     AtLimit(Limit),
     /// The drive sent an emergency message.
     #[error("the drive sent EMCY {code:04X}h{}", .text.as_ref().map(|t| format!(" ({t})")).unwrap_or_default())]

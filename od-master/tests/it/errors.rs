@@ -356,7 +356,7 @@ async fn on_a_limit_switch_a_move_further_in_is_refused_and_one_out_succeeds() {
             if l.side == LimitSide::Positive && matches!(l.by, LimitSource::Switch { .. })),
         "{e}"
     );
-    assert!(e.to_string().contains("at its positive limit switch (digital inputs 60FDh"), "{e}");
+    assert!(e.to_string().contains("limited by its positive limit switch (digital inputs 60FDh"), "{e}");
     let sw = akd.statusword().await.unwrap();
     assert_ne!(sw & (1 << 11), 0, "standing on the switch: {sw:04X}h");
     assert_eq!(akd.node().read::<u32>(0x60FD, 0).await.unwrap() & 3, 2, "60FDh: the positive switch");
@@ -446,4 +446,46 @@ async fn modes_are_checked_against_6502h_and_the_sidecar() {
         ),
         "{e}"
     );
+}
+
+/// The AKD's software position limits (607Dh, in force after save and restart, 6.11): a
+/// target beyond the positive one is clipped by the drive (statusword bit 11, warning n107), so
+/// the wait for it ends at once naming 607Dh sub 2; at the limit, a move further out is refused
+/// before anything is written, and a move back in is taken and succeeds.
+#[tokio::test(start_paused = true)]
+async fn a_target_beyond_a_software_limit_ends_at_once_naming_607dh() {
+    let n = net(&[(DeviceKind::Akd, 4)]);
+    pass(Duration::from_millis(5)).await;
+    let akd = Axis::new(n.bus.node(4).unwrap()).with_sidecar(&sidecar("kollmorgen-akd"));
+    let node = akd.node().clone();
+    node.write_idempotent(0x6092, 1, 10_000u32).await.unwrap();
+    node.write_idempotent(0x607D, 1, -5_000i32).await.unwrap();
+    node.write_idempotent(0x607D, 2, 5_000i32).await.unwrap();
+    node.write(0x1010, 1, u32::from_le_bytes(*b"save")).await.unwrap();
+    node.reset().await.unwrap();
+    pass(Duration::from_millis(50)).await;
+    assert_eq!(node.read::<i32>(0x607D, 2).await.unwrap(), 5_000, "kept over the restart");
+    akd.home(HomingMethod(35)).await.unwrap();
+    let m =
+        Move { velocity: Some(40_000), acceleration: Some(400_000), deceleration: Some(400_000), ..Move::default() };
+    let start = tokio::time::Instant::now();
+    let e = akd.move_to(9_000, &m).await.unwrap_err();
+    assert!(start.elapsed() < Duration::from_millis(200), "{:?}: {e}", start.elapsed());
+    let Error::Axis(a) = &e else { panic!("{e}") };
+    assert!(
+        matches!(&a.kind, AxisErrorKind::Stopped { why: StopReason::AtLimit(l), .. }
+            if l.side == LimitSide::Positive && l.by == LimitSource::Software { value: 5_000 }),
+        "{e}"
+    );
+    assert!(e.to_string().contains("positive software position limit (607Dh sub 2 = 5000)"), "{e}");
+    // The drive goes on to its limit, where it stands with bit 11.
+    akd.wait_target_reached(Duration::from_secs(2)).await.unwrap_err();
+    pass(Duration::from_millis(500)).await;
+    assert_eq!(akd.position().await.unwrap(), 5_000);
+    let e = akd.move_to(6_000, &m).await.unwrap_err();
+    assert!(
+        matches!(impossible(&e), Impossible::IntoLimit { limit, .. } if limit.by == LimitSource::Software { value: 5_000 }),
+        "{e}"
+    );
+    assert_eq!(akd.move_to(-4_000, &m).await.unwrap(), -4_000);
 }

@@ -277,7 +277,7 @@ async fn over_the_hub_waits_that_cannot_succeed_end_at_once_saying_why() {
     let e = akd.move_to(120_000, &m).await.unwrap_err();
     assert!(t.elapsed() < Duration::from_secs(1), "{:?}", t.elapsed());
     assert!(matches!(&e, Error::Axis(a) if matches!(a.kind, AxisErrorKind::Impossible(Impossible::IntoLimit { .. }))));
-    assert!(e.to_string().contains("at its positive limit switch (digital inputs 60FDh = "), "{e}");
+    assert!(e.to_string().contains("limited by its positive limit switch (digital inputs 60FDh = "), "{e}");
     eprintln!("AKD further into its limit switch ({:?}): {e}", t.elapsed());
     let t = Instant::now();
     assert_eq!(akd.move_to(0, &m).await.unwrap_or_else(|e| panic!("{e}")), 0);

@@ -244,7 +244,7 @@ impl od_runtime::od::ObjectDictionary for ProgramData {
 }
 
 impl ProgramTarget {
-    fn new(id: u8) -> Box<dyn AnyNode> {
+    fn boxed(id: u8) -> Box<dyn AnyNode> {
         let id = od_runtime::NodeId::new(id).expect("a node id");
         let dev = od_runtime::Device::with_capacity(ProgramData { program: Vec::new() }, (), od_runtime::NoStorage, id);
         Box::new(Self { dev, last_poll: None })
@@ -253,7 +253,7 @@ impl ProgramTarget {
 
 impl AnyNode for ProgramTarget {
     fn handle(&mut self, frame: &od_bus::CanFrame, now: od_runtime::Micros) {
-        if let Ok(f) = od_runtime::Frame::try_from(frame.clone()) {
+        if let Ok(f) = od_runtime::Frame::try_from(*frame) {
             self.dev.on_frame(&f, now);
         }
     }
@@ -272,7 +272,7 @@ impl AnyNode for ProgramTarget {
     }
     fn upload(&mut self, index: u16, sub: u8) -> Result<Vec<u8>, od_runtime::od::AbortCode> {
         let mut buf = vec![0; PROGRAM_CAP];
-        let n = od_runtime::od::ObjectDictionary::read(&ProgramData { program: Vec::new() }, index, sub, &mut buf)?;
+        let n = od_runtime::od::ObjectDictionary::read(self.dev.od(), index, sub, &mut buf)?;
         buf.truncate(n);
         Ok(buf)
     }
@@ -289,7 +289,7 @@ impl AnyNode for ProgramTarget {
 /// 1 Mbit/s, the AKD on the same bus; the bytes read are the bytes written.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn ten_kilobytes_go_both_ways_in_one_segmented_transfer_each() {
-    let rig = Rig::start_with(&[(DeviceKind::Akd, 4)], vec![ProgramTarget::new(10)], Firmware::Canable);
+    let rig = Rig::start_with(&[(DeviceKind::Akd, 4)], vec![ProgramTarget::boxed(10)], Firmware::Canable);
     let bus = Bus::open(&rig.addr(1_000_000), Config::default()).await.unwrap();
     // (An upload longer than SdoOptions::max_len's default is refused by the client.)
     let segmented = SdoOptions {
