@@ -26,7 +26,8 @@
 //!   stopped on its limit keeps it set. Before a move (and whenever bit 11 is set during its
 //!   wait) the axis finds out which limit it is: the limit switches of 60FDh (bit 0 negative,
 //!   bit 1 positive) where the drive has 60FDh, the software position limits 607Dh the position
-//!   is at or the target is beyond, and the limit bits of the drive's own register where its
+//!   is at (or the target is beyond, when bit 11 came up with the move: the drive limited it),
+//!   and the limit bits of the drive's own register where its
 //!   sidecar names them (`[[warning]] limit = "positive"`: the DRVI's 2006h bits 6 and 7). A
 //!   move further into that limit is refused before anything is written
 //!   ([`Impossible::IntoLimit`](crate::Impossible::IntoLimit)), or its wait ends at once
@@ -197,6 +198,9 @@ pub struct Axis {
     supported: Mutex<Option<Option<u32>>>,
     /// The last set-point's direction and target, for the limit checks of the wait for it.
     heading: Mutex<Option<Planned>>,
+    /// The statusword before the last set-point, for the wait for its target: bits that came
+    /// up with the set-point (the AKD clipping it to a software limit) came up during the move.
+    before_set_point: Mutex<Option<u16>>,
 }
 
 /// What a device's sidecar says of its modes ([`Axis::with_sidecar`]).
@@ -259,6 +263,7 @@ impl Axis {
             modes: SidecarModes::default(),
             supported: Mutex::new(None),
             heading: Mutex::new(None),
+            before_set_point: Mutex::new(None),
         }
     }
 
@@ -448,7 +453,11 @@ impl Axis {
             Some(p) => Some(self.heading(p).await?),
             None => None,
         };
-        let limits = self.active_limits(heading.and_then(|h| h.target)).await?;
+        // The target beyond a software limit counts when bit 11 came up during the move (the
+        // drive limited it); a bit 11 that stood before is the drive's (the DRVI's stands while
+        // its limit check is on, against limits it offsets by the home offset).
+        let target = if rose { heading.and_then(|h| h.target) } else { None };
+        let limits = self.active_limits(target).await?;
         let ahead = heading.filter(|h| h.sign != 0).and_then(|h| limits.iter().find(|l| l.side == side_of(h.sign)));
         Ok(match ahead {
             Some(limit) => Some(StopReason::AtLimit(limit.clone())),
@@ -625,6 +634,7 @@ impl Axis {
         let before = self
             .wait("bit 12 clear before a new set-point", self.config.state_timeout, |sw| sw & SW_BIT12 == 0)
             .await?;
+        *self.before_set_point.lock().unwrap_or_else(|e| e.into_inner()) = Some(before);
         self.set(TARGET_POSITION, 0, target).await?;
         self.controlword(bits | 0x10).await?;
         let acknowledged = self.wait_guarded(
@@ -654,8 +664,11 @@ impl Axis {
     /// Waits for "target reached" (bit 10), failing on a following error (bit 13), a fault or
     /// the timeout.
     pub async fn wait_target_reached(&self, timeout: Duration) -> Result<(), Error> {
+        let before = self.before_set_point.lock().unwrap_or_else(|e| e.into_inner()).take();
         let sw = self
-            .wait_guarded("target reached", timeout, Guard::Motion, None, |sw| sw & (SW_TARGET_REACHED | SW_BIT13) != 0)
+            .wait_guarded("target reached", timeout, Guard::Motion, before, |sw| {
+                sw & (SW_TARGET_REACHED | SW_BIT13) != 0
+            })
             .await?;
         if sw & SW_TARGET_REACHED == 0 {
             return Err(self.error(TARGET_POSITION, 0, AxisErrorKind::Bit13("following error")));
@@ -777,7 +790,7 @@ impl Axis {
     /// Where the drive's position limits are, when statusword bit 11 (internal limit active)
     /// says it is limited: the limit switches of 60FDh (bit 0 negative, bit 1 positive) where
     /// the drive has 60FDh; the software position limits 607Dh (both 0: none) that the
-    /// position is at or `target` is beyond; the limit bits of the drive's own register
+    /// position is at or `target` (where given) is beyond; the limit bits of the drive's own register
     /// ([`with_sidecar`](Self::with_sidecar)). Objects the drive lacks are skipped.
     async fn active_limits(&self, target: Option<i64>) -> Result<Vec<crate::error::Limit>, Error> {
         use crate::error::{Limit, LimitSource};
@@ -853,9 +866,7 @@ impl Axis {
         if heading.sign == 0 {
             return Ok(());
         }
-        if let Some(limit) =
-            self.active_limits(heading.target).await?.into_iter().find(|l| l.side == side_of(heading.sign))
-        {
+        if let Some(limit) = self.active_limits(None).await?.into_iter().find(|l| l.side == side_of(heading.sign)) {
             let what = heading.describe();
             let (index, sub) = limit_object(&limit);
             return Err(self
