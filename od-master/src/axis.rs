@@ -16,8 +16,9 @@
 //! # What cannot succeed fails at once
 //!
 //! * Modes: a mode of operation is checked against 6502h (supported drive modes, read once)
-//!   before anything is written, by [`Axis::set_mode`], [`Axis::home`], [`Axis::set_point`],
-//!   [`Axis::run_velocity`] and [`Axis::cyclic_position`]. A vendor's 6502h may leave out a
+//!   before anything is written, by [`Axis::home`], [`Axis::set_point`],
+//!   [`Axis::run_velocity`] and [`Axis::cyclic_position`]; by [`Axis::set_mode`] too once
+//!   6502h is known, else when the drive refuses the mode. A vendor's 6502h may leave out a
 //!   mode its drive runs (the AKD's 65h lacks profile torque and cyclic synchronous position):
 //!   the device's sidecar says so (`[[mode]] not_in_6502h = true`) and
 //!   [`Axis::with_sidecar`] takes it. A drive without 6502h is checked against its sidecar's
@@ -422,11 +423,12 @@ impl Axis {
             if let Some(mut why) = stop {
                 if matches!(why, StopReason::Emergency { .. }) {
                     // The EMCY can come before the statusword shows why: the error shows it,
-                    // and a limit the move heads for is named rather than the EMCY's code.
+                    // and a limit the move heads for is named rather than the EMCY's code (the
+                    // EMCY says the drive limited the move now: its target counts).
                     if let Ok(sw) = self.statusword().await
                         && sw & SW_INTERNAL_LIMIT != 0
                         && watch.guard == Guard::Motion
-                        && let Some(limit @ StopReason::AtLimit(_)) = self.limit_verdict(false, false).await?
+                        && let Some(limit @ StopReason::AtLimit(_)) = self.limit_verdict(true, false).await?
                     {
                         why = limit;
                     }
@@ -540,16 +542,24 @@ impl Axis {
     }
 
     /// Writes the mode of operation (6060h) and waits until 6061h shows it.
+    ///
     /// A mode the drive does not support (6502h, with what its sidecar adds:
-    /// [`with_sidecar`](Self::with_sidecar)) fails at once, before anything is written
-    /// ([`Impossible::Mode`]).
+    /// [`with_sidecar`](Self::with_sidecar)) fails naming 6502h ([`Impossible::Mode`]): before
+    /// anything is written once the axis knows 6502h (the operations that select a mode for
+    /// themselves read it first), else as soon as the drive refuses the write or 6061h does
+    /// not follow (a plain mode change costs no extra transfer).
     pub async fn set_mode(&self, mode: i8) -> Result<(), Error> {
-        self.check_mode(mode).await?;
+        if self.supported.lock().unwrap_or_else(|e| e.into_inner()).is_some() {
+            self.check_mode(mode).await?;
+        }
         let shown: i8 = self.read(MODE_DISPLAY, 0).await?;
         if shown == mode {
             return Ok(());
         }
-        self.set(MODE, 0, mode).await?;
+        if let Err(e) = self.set(MODE, 0, mode).await {
+            self.check_mode(mode).await?;
+            return Err(e);
+        }
         let end = Instant::now() + self.config.state_timeout;
         loop {
             let shown: i8 = self.read(MODE_DISPLAY, 0).await?;
@@ -557,6 +567,7 @@ impl Axis {
                 return Ok(());
             }
             if Instant::now() >= end {
+                self.check_mode(mode).await?;
                 return Err(self.error(MODE_DISPLAY, 0, AxisErrorKind::Mode { wanted: mode, shown }));
             }
             tokio::time::sleep(self.config.poll).await;
@@ -859,7 +870,13 @@ impl Axis {
     /// goes into; a move away from it passes. Remembers `planned` for the waits that follow.
     async fn check_limits(&self, planned: Planned) -> Result<(), Error> {
         *self.heading.lock().unwrap_or_else(|e| e.into_inner()) = Some(planned);
-        if self.statusword().await? & SW_INTERNAL_LIMIT == 0 {
+        // A statusword read within the last poll period (by the operation before) is as good
+        // as a new one; a bit 11 that comes up later is seen by the move's wait.
+        let sw = match self.last_statusword() {
+            Some((sw, at)) if at.elapsed() < self.config.poll => sw,
+            _ => self.statusword().await?,
+        };
+        if sw & SW_INTERNAL_LIMIT == 0 {
             return Ok(());
         }
         let heading = self.heading(planned).await?;

@@ -416,6 +416,11 @@ async fn modes_are_checked_against_6502h_and_the_sidecar() {
     );
     let e = drvi.set_mode(8).await.unwrap_err();
     assert!(matches!(impossible(&e), Impossible::ModeNotListed { mode: 8, .. }), "{e}");
+    // An axis that has not read 6502h yet writes 6060h; the drive refuses it, and the error
+    // names the supported modes, not only the abort.
+    let fresh = Axis::new(n.bus.node(2).unwrap()).with_sidecar(&sidecar("camozzi-drvi"));
+    let e = fresh.set_mode(8).await.unwrap_err();
+    assert!(matches!(impossible(&e), Impossible::ModeNotListed { mode: 8, .. }), "{e}");
     assert!(start.elapsed() < Duration::from_millis(100), "{:?}", start.elapsed());
     assert_eq!(drvi.node().read::<u32>(0x1400, 1).await.unwrap(), rpdo1, "RPDO1 untouched");
 
