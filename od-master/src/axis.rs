@@ -31,8 +31,8 @@
 //!   and the limit bits of the drive's own register where its
 //!   sidecar names them (`[[warning]] limit = "positive"`: the DRVI's 2006h bits 6 and 7). A
 //!   move further into that limit is refused before anything is written
-//!   ([`Impossible::IntoLimit`](crate::Impossible::IntoLimit)), or its wait ends at once
-//!   ([`StopReason::AtLimit`](crate::StopReason::AtLimit)); a move away from it is taken and its
+//!   ([`Impossible::IntoLimit`]), or its wait ends at once
+//!   ([`StopReason::AtLimit`]); a move away from it is taken and its
 //!   wait goes on while bit 11 stands. A bit 11 that comes up during a wait with no limit to be
 //!   found (a torque or velocity limit) ends it as before; one standing at the start does not.
 //! * Warnings: a warning (statusword bit 7) standing when a move starts does not refuse it and
