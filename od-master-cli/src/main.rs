@@ -405,11 +405,10 @@ async fn run(args: Args) -> Result<(), Fail> {
             let node = node_id(&node.to_string())?;
             let mut axis = Axis::new(bus.node(node).map_err(fail)?);
             let device = devices.for_node(node);
-            // The drive's own warning register and EMCY texts, from its sidecar, in the errors.
+            // The drive's own warning register (and its limit bits), the modes it runs beside
+            // 6502h and the EMCY texts, from its sidecar.
             if let Some(sidecar) = device.and_then(|d| d.sidecar.as_ref()) {
-                if let Some(register) = od_master::StatusRegister::from_sidecar(sidecar) {
-                    axis = axis.with_register(register);
-                }
+                axis = axis.with_sidecar(sidecar);
                 bus.set_emcy_texts(node, od_master::EmcyTexts::from_sidecar(sidecar)).await.map_err(fail)?;
             }
             match action {

@@ -228,10 +228,18 @@ async fn csp(a: &Args) -> Result<String, od_master::Error> {
     let bus = Bus::open(&a.bus, Config::default()).await?;
     let mut streams = Vec::new();
     for &id in &a.nodes {
-        let axis = Axis::new(bus.node(id)?);
+        let mut axis = Axis::new(bus.node(id)?);
         // "Home here": 35 in CiA 402 since 2012 (the AKD), 37 before it (the Camozzi drives).
         let ty = axis.node().read::<u32>(0x1018, 1).await?;
         let method = if ty == 0x0000_006A { 35 } else { 37 };
+        if ty == 0x0000_006A {
+            // Its sidecar: the AKD runs cyclic synchronous position though its 6502h leaves it
+            // out, and the axis checks modes against 6502h.
+            let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../devices/kollmorgen-akd.toml");
+            if let Ok(sidecar) = od_sidecar::Sidecar::read(std::path::Path::new(path)) {
+                axis = axis.with_sidecar(&sidecar);
+            }
+        }
         // From any state, through a fault reset: an AKD left in cyclic synchronous position by
         // an earlier run faulted (F125) when its SYNC stopped, and faults again without SYNC
         // unless it leaves that mode first.

@@ -12,6 +12,36 @@
 //! | profile position: set-point handshake (bit 4 / bit 12), change set immediately, relative; target reached | 607Ah, 6081h, 6083h, 6084h | [`Axis::set_point`], [`Axis::move_to`] |
 //! | profile velocity | 60FFh, 6083h, 6084h | [`Axis::run_velocity`] |
 //! | cyclic synchronous position: a set-point every SYNC | 1400h+, 1600h+, 607Ah | [`Axis::cyclic_position`], [`Csp::send`] |
+//!
+//! # What cannot succeed fails at once
+//!
+//! * Modes: a mode of operation is checked against 6502h (supported drive modes, read once)
+//!   before anything is written, by [`Axis::home`], [`Axis::set_point`],
+//!   [`Axis::run_velocity`] and [`Axis::cyclic_position`]; by [`Axis::set_mode`] too once
+//!   6502h is known, else when the drive refuses the mode. A vendor's 6502h may leave out a
+//!   mode its drive runs (the AKD's 65h lacks profile torque and cyclic synchronous position):
+//!   the device's sidecar says so (`[[mode]] not_in_6502h = true`) and
+//!   [`Axis::with_sidecar`] takes it. A drive without 6502h is checked against its sidecar's
+//!   `[[mode]]` list, else not at all.
+//! * Limits: statusword bit 11 (internal limit active) is a level, not an edge: a drive that
+//!   stopped on its limit keeps it set. Before a move (and whenever bit 11 is set during its
+//!   wait) the axis finds out which limit it is: the limit switches of 60FDh (bit 0 negative,
+//!   bit 1 positive) where the drive has 60FDh, the software position limits 607Dh the position
+//!   is at (or the target is beyond, when bit 11 came up with the move: the drive limited it),
+//!   and the limit bits of the drive's own register where its
+//!   sidecar names them (`[[warning]] limit = "positive"`: the DRVI's 2006h bits 6 and 7). A
+//!   move further into that limit is refused before anything is written
+//!   ([`Impossible::IntoLimit`]), or its wait ends at once
+//!   ([`StopReason::AtLimit`]); a move away from it is taken and its
+//!   wait goes on while bit 11 stands. A bit 11 that comes up during a wait with no limit to be
+//!   found (a torque or velocity limit) ends it as before; one standing at the start does not.
+//! * Warnings: a warning (statusword bit 7) standing when a move starts does not refuse it and
+//!   does not end its wait: it was there before the move and the drive took the move (a
+//!   temperature warning, the warning of the limit switch a move leaves). Only a warning that
+//!   comes up during the wait ends it, with the drive's register read into the message. A
+//!   drive that refuses a command while its warning stands (the DRVI's "command refused"
+//!   latched from an earlier refusal) does not acknowledge the set-point: that wait ends after
+//!   [`AxisConfig::state_timeout`] (1 s), with the register in the message.
 
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -163,6 +193,59 @@ pub struct Axis {
     last: Mutex<Option<(u16, Instant)>>,
     /// The drive's own warning or status register, read into errors.
     register: Option<Arc<StatusRegister>>,
+    /// What the device's sidecar says of its modes beside 6502h.
+    modes: SidecarModes,
+    /// 6502h as read once (`Some(None)`: the drive has none), for the mode checks.
+    supported: Mutex<Option<Option<u32>>>,
+    /// The last set-point's direction and target, for the limit checks of the wait for it.
+    heading: Mutex<Option<Planned>>,
+    /// The statusword before the last set-point, for the wait for its target: bits that came
+    /// up with the set-point (the AKD clipping it to a software limit) came up during the move.
+    before_set_point: Mutex<Option<u16>>,
+}
+
+/// What a device's sidecar says of its modes ([`Axis::with_sidecar`]).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+struct SidecarModes {
+    /// 6502h bits of the modes the drive runs though its 6502h leaves them out.
+    added: u32,
+    /// The `[[mode]]` list, for a drive without 6502h (`None`: no sidecar, or an empty list).
+    listed: Option<Vec<i8>>,
+}
+
+/// A move as commanded, for the limit checks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Planned {
+    /// To an absolute target.
+    Position(i32),
+    /// Relative, by a distance of this sign.
+    Relative(i32),
+    /// A target velocity.
+    Velocity(i32),
+}
+
+/// Where a move goes: the sign of its direction and, for a position, its target.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Heading {
+    sign: i64,
+    target: Option<i64>,
+    /// The position it starts from, where read.
+    from: Option<i64>,
+    /// A velocity rather than a position.
+    velocity: bool,
+}
+
+impl Heading {
+    fn describe(&self) -> String {
+        match (self.target, self.from) {
+            (Some(t), Some(f)) => format!("a move to {t} from {f}"),
+            (Some(t), None) => format!("a move to {t}"),
+            (None, _) if self.velocity => {
+                format!("a {} velocity", if self.sign > 0 { "positive" } else { "negative" })
+            }
+            _ => format!("a relative move in the {} direction", if self.sign > 0 { "positive" } else { "negative" }),
+        }
+    }
 }
 
 impl Axis {
@@ -173,7 +256,16 @@ impl Axis {
 
     /// The drive on `node` with `config`.
     pub fn with_config(node: Node, config: AxisConfig) -> Self {
-        Self { node, config, last: Mutex::new(None), register: None }
+        Self {
+            node,
+            config,
+            last: Mutex::new(None),
+            register: None,
+            modes: SidecarModes::default(),
+            supported: Mutex::new(None),
+            heading: Mutex::new(None),
+            before_set_point: Mutex::new(None),
+        }
     }
 
     /// This drive with its vendor's warning or status register (from its sidecar:
@@ -181,6 +273,26 @@ impl Axis {
     /// which of its bits are set, in the sidecar's words.
     pub fn with_register(mut self, register: StatusRegister) -> Self {
         self.register = Some(Arc::new(register));
+        self
+    }
+
+    /// This drive with what its device's sidecar says: its warning or status register
+    /// ([`with_register`](Self::with_register)), whose `limit` bits tell which position limit
+    /// the drive is at; the modes it runs though its 6502h leaves them out (`[[mode]]
+    /// not_in_6502h = true`: the AKD's cyclic synchronous position), taken as supported; and,
+    /// for a drive without 6502h (the DRVI), its `[[mode]]` list as the modes it supports.
+    pub fn with_sidecar(mut self, sidecar: &od_sidecar::Sidecar) -> Self {
+        if let Some(register) = StatusRegister::from_sidecar(sidecar) {
+            self.register = Some(Arc::new(register));
+        }
+        let added = sidecar
+            .modes
+            .iter()
+            .filter(|m| m.not_in_6502h)
+            .filter_map(|m| crate::error::supported_mode_bit(m.code))
+            .fold(0, |a, b| a | b);
+        let listed = (!sidecar.modes.is_empty()).then(|| sidecar.modes.iter().map(|m| m.code).collect());
+        self.modes = SidecarModes { added, listed };
         self
     }
 
@@ -303,10 +415,23 @@ impl Axis {
                 let error_code = self.error_code().await;
                 return Err(self.explained(STATUSWORD, 0, AxisErrorKind::Fault { error_code }).await);
             }
-            if let Some(why) = watch.check(sw) {
+            let stop = match watch.check(sw) {
+                Verdict::Go => None,
+                Verdict::Stop(why) => Some(why),
+                Verdict::Limited { rose, warning_rose } => self.limit_verdict(rose, warning_rose).await?,
+            };
+            if let Some(mut why) = stop {
                 if matches!(why, StopReason::Emergency { .. }) {
-                    // The EMCY can come before the statusword shows why: the error shows it.
-                    let _ = self.statusword().await;
+                    // The EMCY can come before the statusword shows why: the error shows it,
+                    // and a limit the move heads for is named rather than the EMCY's code (the
+                    // EMCY says the drive limited the move now: its target counts).
+                    if let Ok(sw) = self.statusword().await
+                        && sw & SW_INTERNAL_LIMIT != 0
+                        && watch.guard == Guard::Motion
+                        && let Some(limit @ StopReason::AtLimit(_)) = self.limit_verdict(true, false).await?
+                    {
+                        why = limit;
+                    }
                 }
                 let kind = AxisErrorKind::Stopped { what: what.to_owned(), why };
                 return Err(self.explained(STATUSWORD, 0, kind).await);
@@ -318,6 +443,30 @@ impl Axis {
             }
             self.pause(&mut interrupts).await?;
         }
+    }
+
+    /// Statusword bit 11 is set during a move's wait (it came up, or stood at the start):
+    /// the wait stops when the limit is the one the move heads for; a limit behind it (the
+    /// move leaves a limit switch) lets it go on. A bit 11 that came up with no limit to be
+    /// found (a torque or velocity limit) stops it as before; one that stood, does not.
+    async fn limit_verdict(&self, rose: bool, warning_rose: bool) -> Result<Option<StopReason>, Error> {
+        let planned = *self.heading.lock().unwrap_or_else(|e| e.into_inner());
+        let heading = match planned {
+            Some(p) => Some(self.heading(p).await?),
+            None => None,
+        };
+        // The target beyond a software limit counts when bit 11 came up during the move (the
+        // drive limited it); a bit 11 that stood before is the drive's (the DRVI's stands while
+        // its limit check is on, against limits it offsets by the home offset).
+        let target = if rose { heading.and_then(|h| h.target) } else { None };
+        let limits = self.active_limits(target).await?;
+        let ahead = heading.filter(|h| h.sign != 0).and_then(|h| limits.iter().find(|l| l.side == side_of(h.sign)));
+        Ok(match ahead {
+            Some(limit) => Some(StopReason::AtLimit(limit.clone())),
+            None if limits.is_empty() && rose => Some(StopReason::InternalLimit),
+            None if limits.is_empty() && warning_rose => Some(StopReason::Warning),
+            None => None,
+        })
     }
 
     async fn wait_state(&self, want: State) -> Result<(), Error> {
@@ -393,12 +542,24 @@ impl Axis {
     }
 
     /// Writes the mode of operation (6060h) and waits until 6061h shows it.
+    ///
+    /// A mode the drive does not support (6502h, with what its sidecar adds:
+    /// [`with_sidecar`](Self::with_sidecar)) fails naming 6502h ([`Impossible::Mode`]): before
+    /// anything is written once the axis knows 6502h (the operations that select a mode for
+    /// themselves read it first), else as soon as the drive refuses the write or 6061h does
+    /// not follow (a plain mode change costs no extra transfer).
     pub async fn set_mode(&self, mode: i8) -> Result<(), Error> {
+        if self.supported.lock().unwrap_or_else(|e| e.into_inner()).is_some() {
+            self.check_mode(mode).await?;
+        }
         let shown: i8 = self.read(MODE_DISPLAY, 0).await?;
         if shown == mode {
             return Ok(());
         }
-        self.set(MODE, 0, mode).await?;
+        if let Err(e) = self.set(MODE, 0, mode).await {
+            self.check_mode(mode).await?;
+            return Err(e);
+        }
         let end = Instant::now() + self.config.state_timeout;
         loop {
             let shown: i8 = self.read(MODE_DISPLAY, 0).await?;
@@ -406,6 +567,7 @@ impl Axis {
                 return Ok(());
             }
             if Instant::now() >= end {
+                self.check_mode(mode).await?;
                 return Err(self.error(MODE_DISPLAY, 0, AxisErrorKind::Mode { wanted: mode, shown }));
             }
             tokio::time::sleep(self.config.poll).await;
@@ -465,6 +627,7 @@ impl Axis {
     pub async fn set_point(&self, target: i32, m: &Move) -> Result<(), Error> {
         self.check_mode(mode::PROFILE_POSITION).await?;
         self.check_velocity(m).await?;
+        self.check_limits(if m.relative { Planned::Relative(target) } else { Planned::Position(target) }).await?;
         self.set_mode(mode::PROFILE_POSITION).await?;
         if let Some(v) = m.velocity {
             self.set(0x6081, 0, v).await?;
@@ -482,6 +645,7 @@ impl Axis {
         let before = self
             .wait("bit 12 clear before a new set-point", self.config.state_timeout, |sw| sw & SW_BIT12 == 0)
             .await?;
+        *self.before_set_point.lock().unwrap_or_else(|e| e.into_inner()) = Some(before);
         self.set(TARGET_POSITION, 0, target).await?;
         self.controlword(bits | 0x10).await?;
         let acknowledged = self.wait_guarded(
@@ -511,8 +675,11 @@ impl Axis {
     /// Waits for "target reached" (bit 10), failing on a following error (bit 13), a fault or
     /// the timeout.
     pub async fn wait_target_reached(&self, timeout: Duration) -> Result<(), Error> {
+        let before = self.before_set_point.lock().unwrap_or_else(|e| e.into_inner()).take();
         let sw = self
-            .wait_guarded("target reached", timeout, Guard::Motion, None, |sw| sw & (SW_TARGET_REACHED | SW_BIT13) != 0)
+            .wait_guarded("target reached", timeout, Guard::Motion, before, |sw| {
+                sw & (SW_TARGET_REACHED | SW_BIT13) != 0
+            })
             .await?;
         if sw & SW_TARGET_REACHED == 0 {
             return Err(self.error(TARGET_POSITION, 0, AxisErrorKind::Bit13("following error")));
@@ -537,6 +704,7 @@ impl Axis {
         deceleration: Option<u32>,
     ) -> Result<(), Error> {
         self.check_mode(mode::PROFILE_VELOCITY).await?;
+        self.check_limits(Planned::Velocity(velocity)).await?;
         self.set_mode(mode::PROFILE_VELOCITY).await?;
         if let Some(v) = acceleration {
             self.set(0x6083, 0, v).await?;
@@ -561,7 +729,12 @@ impl Axis {
     /// RPDO right before each SYNC ([`Bus::cyclic_pdo`](crate::Bus::cyclic_pdo)), with the
     /// latest set-point [`Csp::send`] gave (at first the position the drive is at), until the
     /// [`Csp`] is dropped.
+    ///
+    /// A drive whose supported drive modes (6502h) lack cyclic synchronous position fails at
+    /// once, before anything is written; the AKD, whose 6502h leaves out the mode it runs,
+    /// passes with its sidecar ([`with_sidecar`](Self::with_sidecar)).
     pub async fn cyclic_position(&self, rpdo: u16, cob_id: u16) -> Result<Csp, Error> {
+        self.check_mode(mode::CYCLIC_SYNC_POSITION).await?;
         let k = rpdo.clamp(1, 512) - 1;
         // 607Ah, 32 bits, synchronous (transmission type 1).
         let wrap = |index, sub, e| self.error(index, sub, AxisErrorKind::Sdo(Box::new(e)));
@@ -584,19 +757,138 @@ impl Axis {
 
 /// What makes an operation impossible, checked before it starts.
 impl Axis {
-    /// Fails at once when the drive's supported drive modes (6502h) lack `mode`. A drive
-    /// without 6502h (or one that refuses to read it) is not checked.
+    /// Fails at once when the drive's supported drive modes (6502h, read once), with the
+    /// modes its sidecar adds, lack `mode`. A drive without 6502h (or one that refuses to read
+    /// it) is checked against its sidecar's `[[mode]]` list where the axis has one, else not
+    /// checked; so are modes 6502h has no bit for (manufacturer-specific ones).
     async fn check_mode(&self, mode: i8) -> Result<(), Error> {
-        let Some(bit) = crate::error::supported_mode_bit(mode) else { return Ok(()) };
-        let supported = match self.node.read::<u32>(0x6502, 0).await {
-            Ok(v) => v,
-            Err(Error::Sdo { error, .. }) if matches!(error.error, od_runtime::master::SdoError::Server(_)) => {
-                return Ok(());
+        let cached = *self.supported.lock().unwrap_or_else(|e| e.into_inner());
+        let supported = match cached {
+            Some(s) => s,
+            None => {
+                let s = match self.node.read::<u32>(0x6502, 0).await {
+                    Ok(v) => Some(v),
+                    Err(Error::Sdo { error, .. }) if matches!(error.error, od_runtime::master::SdoError::Server(_)) => {
+                        None
+                    }
+                    Err(e) => return Err(self.error(0x6502, 0, AxisErrorKind::Sdo(Box::new(e)))),
+                };
+                *self.supported.lock().unwrap_or_else(|e| e.into_inner()) = Some(s);
+                s
             }
-            Err(e) => return Err(self.error(0x6502, 0, AxisErrorKind::Sdo(Box::new(e)))),
         };
-        if supported & bit == 0 {
-            return Err(self.error(0x6502, 0, AxisErrorKind::Impossible(Impossible::Mode { mode, supported })));
+        match supported {
+            Some(supported) => {
+                let Some(bit) = crate::error::supported_mode_bit(mode) else { return Ok(()) };
+                if (supported | self.modes.added) & bit == 0 {
+                    let added = self.modes.added;
+                    let kind = AxisErrorKind::Impossible(Impossible::Mode { mode, supported, added });
+                    return Err(self.error(0x6502, 0, kind));
+                }
+            }
+            None => {
+                if let Some(listed) = &self.modes.listed
+                    && !listed.contains(&mode)
+                {
+                    let kind = AxisErrorKind::Impossible(Impossible::ModeNotListed { mode, listed: listed.clone() });
+                    return Err(self.error(MODE, 0, kind));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Where the drive's position limits are, when statusword bit 11 (internal limit active)
+    /// says it is limited: the limit switches of 60FDh (bit 0 negative, bit 1 positive) where
+    /// the drive has 60FDh; the software position limits 607Dh (both 0: none) that the
+    /// position is at or `target` (where given) is beyond; the limit bits of the drive's own register
+    /// ([`with_sidecar`](Self::with_sidecar)). Objects the drive lacks are skipped.
+    async fn active_limits(&self, target: Option<i64>) -> Result<Vec<crate::error::Limit>, Error> {
+        use crate::error::{Limit, LimitSource};
+        use od_sidecar::LimitSide::{Negative, Positive};
+        let mut found = Vec::new();
+        if let Some(inputs) = self.optional::<u32>(0x60FD, 0).await? {
+            for (bit, side) in [(1u32, Positive), (0, Negative)] {
+                if inputs & (1 << bit) != 0 {
+                    found.push(Limit { side, by: LimitSource::Switch { inputs } });
+                }
+            }
+        }
+        if let (Some(min), Some(max)) = (self.optional::<i32>(0x607D, 1).await?, self.optional::<i32>(0x607D, 2).await?)
+            && (min, max) != (0, 0)
+        {
+            let here = i64::from(self.position().await?);
+            let (lo, hi) = (i64::from(min.min(max)), i64::from(min.max(max)));
+            if here >= hi || target.is_some_and(|t| t > hi) {
+                found.push(Limit { side: Positive, by: LimitSource::Software { value: min.max(max) } });
+            }
+            if here <= lo || target.is_some_and(|t| t < lo) {
+                found.push(Limit { side: Negative, by: LimitSource::Software { value: min.min(max) } });
+            }
+        }
+        if let Some(reg) = &self.register
+            && !reg.limits.is_empty()
+            && let Ok(bytes) = self.node.read_bytes(reg.index, reg.sub).await
+            && (1..=4).contains(&bytes.len())
+        {
+            let mut b = [0u8; 4];
+            b[..bytes.len()].copy_from_slice(&bytes);
+            let value = u32::from_le_bytes(b);
+            for &(bit, side) in &reg.limits {
+                if value & (1 << bit) != 0 {
+                    let text = reg.text(bit).unwrap_or_default().to_owned();
+                    found.push(Limit { side, by: LimitSource::Register { index: reg.index, sub: reg.sub, bit, text } });
+                }
+            }
+        }
+        Ok(found)
+    }
+
+    /// A read of an object the drive may lack: `None` when it aborts the read.
+    async fn optional<T: SdoValue>(&self, index: u16, sub: u8) -> Result<Option<T>, Error> {
+        match self.node.read::<T>(index, sub).await {
+            Ok(v) => Ok(Some(v)),
+            Err(Error::Sdo { error, .. }) if matches!(error.error, od_runtime::master::SdoError::Server(_)) => Ok(None),
+            Err(e) => Err(self.error(index, sub, AxisErrorKind::Sdo(Box::new(e)))),
+        }
+    }
+
+    /// Where `planned` goes from here.
+    async fn heading(&self, planned: Planned) -> Result<Heading, Error> {
+        Ok(match planned {
+            Planned::Velocity(v) => Heading { sign: i64::from(v).signum(), target: None, from: None, velocity: true },
+            Planned::Relative(d) => Heading { sign: i64::from(d).signum(), target: None, from: None, velocity: false },
+            Planned::Position(t) => {
+                let here = i64::from(self.position().await?);
+                let t = i64::from(t);
+                Heading { sign: (t - here).signum(), target: Some(t), from: Some(here), velocity: false }
+            }
+        })
+    }
+
+    /// Fails at once when the drive is limited (statusword bit 11) by the limit `planned`
+    /// goes into; a move away from it passes. Remembers `planned` for the waits that follow.
+    async fn check_limits(&self, planned: Planned) -> Result<(), Error> {
+        *self.heading.lock().unwrap_or_else(|e| e.into_inner()) = Some(planned);
+        // A statusword read within the last poll period (by the operation before) is as good
+        // as a new one; a bit 11 that comes up later is seen by the move's wait.
+        let sw = match self.last_statusword() {
+            Some((sw, at)) if at.elapsed() < self.config.poll => sw,
+            _ => self.statusword().await?,
+        };
+        if sw & SW_INTERNAL_LIMIT == 0 {
+            return Ok(());
+        }
+        let heading = self.heading(planned).await?;
+        if heading.sign == 0 {
+            return Ok(());
+        }
+        if let Some(limit) = self.active_limits(None).await?.into_iter().find(|l| l.side == side_of(heading.sign)) {
+            let what = heading.describe();
+            let (index, sub) = limit_object(&limit);
+            return Err(self
+                .explained(index, sub, AxisErrorKind::Impossible(Impossible::IntoLimit { limit, what }))
+                .await);
         }
         Ok(())
     }
@@ -611,6 +903,21 @@ impl Axis {
             return Err(self.error(0x6081, 0, AxisErrorKind::Impossible(Impossible::NoProfileVelocity)));
         }
         Ok(())
+    }
+}
+
+/// The limit a move of direction `sign` (non-zero) goes into.
+fn side_of(sign: i64) -> od_sidecar::LimitSide {
+    if sign > 0 { od_sidecar::LimitSide::Positive } else { od_sidecar::LimitSide::Negative }
+}
+
+/// The object that says which limit it is, for the error.
+fn limit_object(limit: &crate::error::Limit) -> (u16, u8) {
+    use crate::error::LimitSource;
+    match &limit.by {
+        LimitSource::Switch { .. } => (0x60FD, 0),
+        LimitSource::Software { .. } => (0x607D, if limit.side == od_sidecar::LimitSide::Positive { 2 } else { 1 }),
+        LimitSource::Register { index, sub, .. } => (*index, *sub),
     }
 }
 
@@ -630,52 +937,77 @@ enum Guard {
 impl Guard {
     fn watch(self, axis: &Axis, before: Option<u16>) -> GuardWatch {
         let emcy = (self == Guard::Motion).then(|| axis.node.bus().events());
-        GuardWatch { guard: self, node: axis.node.id(), first: before, emcy }
+        GuardWatch { guard: self, node: axis.node.id(), prev: before, emcy, limit_examined: false }
     }
+}
+
+/// What [`GuardWatch::check`] makes of a statusword.
+enum Verdict {
+    /// Nothing stops the wait.
+    Go,
+    /// This stops it.
+    Stop(StopReason),
+    /// Statusword bit 11 is set and has not been looked into since it came up (or since the
+    /// wait started): which limit it is decides ([`Axis::limit_verdict`]).
+    Limited {
+        /// It came up during the wait.
+        rose: bool,
+        /// Bit 7 (warning) came up with it.
+        warning_rose: bool,
+    },
 }
 
 /// A [`Guard`] over one wait: the statusword it started with, and the bus's events.
 struct GuardWatch {
     guard: Guard,
     node: u8,
-    first: Option<u16>,
+    /// The statusword before this one (at first the one before the command, if given).
+    prev: Option<u16>,
     emcy: Option<broadcast::Receiver<Event>>,
+    /// Bit 11 is set and was looked into; cleared when it drops.
+    limit_examined: bool,
 }
 
 impl GuardWatch {
-    /// Why the wait should stop, given the statusword just read. Bits 7 and 11 count when they
-    /// go up during the wait (one already up at its start is the drive's standing condition).
-    fn check(&mut self, sw: u16) -> Option<StopReason> {
-        let first = *self.first.get_or_insert(sw);
+    /// Why the wait should stop, given the statusword just read. Bit 7 (warning) counts when
+    /// it goes up during the wait: a warning standing at its start is the drive's standing
+    /// condition (a temperature warning, the limit switch a move is leaving), not a reason to
+    /// stop a move the drive took. Bit 11 (internal limit) is looked into whenever it is set
+    /// and was not looked into since it came up ([`Verdict::Limited`]).
+    fn check(&mut self, sw: u16) -> Verdict {
+        let prev = self.prev.replace(sw).unwrap_or(sw);
         if self.guard == Guard::State {
-            return None;
+            return Verdict::Go;
         }
         let state = State::from_statusword(sw);
         if state != Some(State::OperationEnabled) {
-            return Some(StopReason::LeftOperationEnabled(state));
+            return Verdict::Stop(StopReason::LeftOperationEnabled(state));
         }
         if self.guard == Guard::Homing {
-            return None;
+            return Verdict::Go;
         }
         if let Some(events) = &mut self.emcy {
             loop {
                 match events.try_recv() {
                     Ok(Event::Emergency { emcy, text }) if emcy.node == self.node && emcy.code != 0 => {
-                        return Some(StopReason::Emergency { code: emcy.code, text });
+                        return Verdict::Stop(StopReason::Emergency { code: emcy.code, text });
                     }
                     Ok(_) | Err(broadcast::error::TryRecvError::Lagged(_)) => {}
                     Err(_) => break,
                 }
             }
         }
-        let rose = |bit: u16| sw & bit != 0 && first & bit == 0;
-        if rose(SW_INTERNAL_LIMIT) {
-            return Some(StopReason::InternalLimit);
+        let rose = |bit: u16| sw & bit != 0 && prev & bit == 0;
+        if sw & SW_INTERNAL_LIMIT == 0 {
+            self.limit_examined = false;
+        } else if !self.limit_examined {
+            self.limit_examined = true;
+            return Verdict::Limited { rose: rose(SW_INTERNAL_LIMIT), warning_rose: rose(SW_WARNING) };
         }
         if rose(SW_WARNING) {
-            return Some(StopReason::Warning);
+            return Verdict::Stop(StopReason::Warning);
         }
-        None
+        Verdict::Go
     }
 }
 

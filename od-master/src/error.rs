@@ -387,14 +387,102 @@ pub enum Impossible {
          `axis move --velocity`) or write 6081h"
     )]
     NoProfileVelocity,
-    /// The drive's supported drive modes (6502h) lack the mode.
-    #[error("the drive does not support mode {mode} ({}): its supported drive modes 6502h = {supported:08X}h ({})", mode_name(*mode), supported_modes(*supported))]
+    /// The drive's supported drive modes (6502h) lack the mode, and so does its sidecar's
+    /// list of the modes it runs though 6502h leaves them out (`not_in_6502h`).
+    #[error("the drive does not support mode {mode} ({}): its supported drive modes 6502h = {supported:08X}h ({}){}", mode_name(*mode), supported_modes(*supported), added_modes(*added))]
     Mode {
         /// The mode of operation asked for (6060h).
         mode: i8,
         /// 6502h.
         supported: u32,
+        /// The 6502h bits the device's sidecar adds (`[[mode]] not_in_6502h = true`: modes the
+        /// drive runs though its 6502h leaves them out, as the AKD's cyclic synchronous position).
+        added: u32,
     },
+    /// The drive has no 6502h (supported drive modes) and its sidecar's `[[mode]]` list lacks
+    /// the mode.
+    #[error("the drive does not support mode {mode} ({}): it has no 6502h (supported drive modes) and its sidecar lists the modes {}", mode_name(*mode), mode_list(listed))]
+    ModeNotListed {
+        /// The mode of operation asked for (6060h).
+        mode: i8,
+        /// The modes the sidecar lists (6060h values).
+        listed: Vec<i8>,
+    },
+    /// The drive is at a position limit (statusword bit 11, internal limit active) and the
+    /// move goes further into it; a move the other way is allowed.
+    #[error("the drive is limited by its {limit} and {what} goes further into it; a move the other way is allowed")]
+    IntoLimit {
+        /// Which limit, and what says so.
+        limit: Limit,
+        /// The move refused (`a move to 100000 from 65536`, `a velocity of 1000`).
+        what: String,
+    },
+}
+
+/// A position limit a drive is at: which side, and what says so.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Limit {
+    /// The positive or the negative limit.
+    pub side: od_sidecar::LimitSide,
+    /// What says the drive is at it.
+    pub by: LimitSource,
+}
+
+/// What tells which limit is active (statusword bit 11 alone does not).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum LimitSource {
+    /// A limit switch input of 60FDh (digital inputs: bit 0 negative, bit 1 positive limit
+    /// switch).
+    Switch {
+        /// 60FDh as read.
+        inputs: u32,
+    },
+    /// A software position limit (607Dh sub 1 minimum, sub 2 maximum) the position is at or
+    /// the target is beyond.
+    Software {
+        /// The limit (607Dh sub 1 or sub 2).
+        value: i32,
+    },
+    /// A bit of the drive's own register that its sidecar names as a limit (`[[warning]]
+    /// limit = "positive"`).
+    Register {
+        /// The register.
+        index: u16,
+        /// Its sub-index.
+        sub: u8,
+        /// The bit.
+        bit: u8,
+        /// The sidecar's text for it.
+        text: String,
+    },
+}
+
+fn side_name(side: od_sidecar::LimitSide) -> &'static str {
+    match side {
+        od_sidecar::LimitSide::Positive => "positive",
+        od_sidecar::LimitSide::Negative => "negative",
+    }
+}
+
+impl fmt::Display for Limit {
+    /// `positive limit switch (60FDh = 00000002h: bit 1 set)`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let side = side_name(self.side);
+        match &self.by {
+            LimitSource::Switch { inputs } => {
+                let bit = if self.side == od_sidecar::LimitSide::Positive { 1 } else { 0 };
+                write!(f, "{side} limit switch (digital inputs 60FDh = {inputs:08X}h: bit {bit} set)")
+            }
+            LimitSource::Software { value } => {
+                let sub = if self.side == od_sidecar::LimitSide::Positive { 2 } else { 1 };
+                write!(f, "{side} software position limit (607Dh sub {sub} = {value})")
+            }
+            LimitSource::Register { index, sub, bit, text } => {
+                let sub = if *sub == 0 { String::new() } else { format!(" sub {sub}") };
+                write!(f, "{side} limit (the drive's register {index:04X}h{sub} bit {bit}: {text})")
+            }
+        }
+    }
 }
 
 /// Why a wait stopped before its timeout.
@@ -410,6 +498,10 @@ pub enum StopReason {
     /// The drive left Operation enabled (its power stage went off).
     #[error("the drive left Operation enabled{}", .0.map(|s| format!(" for {}", state_name(s))).unwrap_or_else(|| " (statusword shows no CiA 402 state)".into()))]
     LeftOperationEnabled(Option<State>),
+    /// Statusword bit 11 (internal limit active) is set and the limit is the one the move
+    /// heads for.
+    #[error("the drive is limited by its {0}, in the direction of the move")]
+    AtLimit(Limit),
     /// The drive sent an emergency message.
     #[error("the drive sent EMCY {code:04X}h{}", .text.as_ref().map(|t| format!(" ({t})")).unwrap_or_default())]
     Emergency {
@@ -479,6 +571,22 @@ fn supported_modes(supported: u32) -> String {
     let names: Vec<&str> =
         (1..=10).filter(|&m| supported_mode_bit(m).is_some_and(|b| supported & b != 0)).map(mode_name).collect();
     if names.is_empty() { "none of CiA 402's".into() } else { names.join(", ") }
+}
+
+fn added_modes(added: u32) -> String {
+    if added == 0 {
+        return String::new();
+    }
+    let names: Vec<&str> =
+        (1..=10).filter(|&m| supported_mode_bit(m).is_some_and(|b| added & b != 0)).map(mode_name).collect();
+    format!(", with {} taken from its sidecar (not_in_6502h)", names.join(", "))
+}
+
+fn mode_list(listed: &[i8]) -> String {
+    if listed.is_empty() {
+        return "none".into();
+    }
+    listed.iter().map(|m| format!("{m} ({})", mode_name(*m))).collect::<Vec<_>>().join(", ")
 }
 
 fn describe_state(state: Option<State>, statusword: Option<u16>, seen: Option<Duration>) -> String {

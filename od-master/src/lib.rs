@@ -37,7 +37,10 @@ mod unit_error;
 pub use axis::{Axis, AxisConfig, Homing, HomingMethod, Move, UnitAxis};
 pub use boot::{BootError, BootOptions, Network, NodeReport};
 pub use bus::{Bus, Config, CyclicPdo, Tpdo};
-pub use error::{AxisError, AxisErrorKind, Error, Impossible, Interruption, RegisterReading, SdoContext, StopReason};
+pub use error::{
+    AxisError, AxisErrorKind, Error, Impossible, Interruption, Limit, LimitSource, RegisterReading, SdoContext,
+    StopReason,
+};
 pub use event::{EmcyTexts, Event};
 pub use node::{Node, SdoOptions, SdoValue};
 pub use register::StatusRegister;

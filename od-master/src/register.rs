@@ -2,7 +2,7 @@
 //! when an operation fails, so that the message says what the drive says (the DRVI's 2006h
 //! "Command refused", the AKD's 1002h "Set-points not accepted").
 
-use od_sidecar::Sidecar;
+use od_sidecar::{LimitSide, Sidecar};
 
 use crate::error::RegisterReading;
 
@@ -15,6 +15,8 @@ pub struct StatusRegister {
     pub sub: u8,
     /// The texts of the bits, by bit number (0..=31).
     pub bits: Vec<(u8, String)>,
+    /// The bits that say the drive is at a position limit (`[[warning]] limit = ...`).
+    pub limits: Vec<(u8, LimitSide)>,
 }
 
 impl StatusRegister {
@@ -28,7 +30,18 @@ impl StatusRegister {
             .filter(|w| w.object == first && w.bit < 32)
             .map(|w| (w.bit, w.text.clone()))
             .collect();
-        Some(Self { index: first.index, sub: first.sub.unwrap_or(0), bits })
+        let limits = sidecar
+            .warnings
+            .iter()
+            .filter(|w| w.object == first && w.bit < 32)
+            .filter_map(|w| w.limit.map(|side| (w.bit, side)))
+            .collect();
+        Some(Self { index: first.index, sub: first.sub.unwrap_or(0), bits, limits })
+    }
+
+    /// The text of `bit`, where the sidecar names it.
+    pub fn text(&self, bit: u8) -> Option<&str> {
+        self.bits.iter().find(|(b, _)| *b == bit).map(|(_, t)| t.as_str())
     }
 
     /// The reading of `value`: the texts of its bits that are set, lowest first.

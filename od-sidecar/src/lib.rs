@@ -73,6 +73,14 @@
 //! code = 1
 //! name = "profile position"
 //!
+//! # A mode the drive runs though its 6502h (supported drive modes) leaves it out: a master
+//! # checking modes against 6502h takes it as supported. Say where the manual says so.
+//! [[mode]]
+//! code = 8
+//! name = "cyclic synchronous position"
+//! note = "6060h lists 8 (6.4.2.3); 6502h = 65h does not"
+//! not_in_6502h = true
+//!
 //! [[homing_method]]
 //! code = 17
 //! description = "negative limit switch"
@@ -91,6 +99,15 @@
 //! text = "Under voltage"
 //! auto_reset = true
 //! reset = "clears when the supply is back in range"
+//!
+//! # A warning bit that says the drive is at a position limit: `limit = "positive"` or
+//! # `"negative"` (a master finding statusword bit 11 set reads it to know which way is blocked).
+//! [[warning]]
+//! object = "0x2006"
+//! bit = 6
+//! text = "Positive position limit reached"
+//! auto_reset = false
+//! limit = "positive"
 //!
 //! [store]
 //! objects = ["0x6081", "0x6083", "0x2001sub1"]
@@ -662,6 +679,12 @@ pub struct Mode {
     /// Objects the mode uses, with remarks.
     #[serde(default)]
     pub note: Option<String>,
+    /// The drive runs the mode though its supported drive modes (6502h) leave it out (the
+    /// AKD's 6502h = 65h lacks profile torque and cyclic synchronous position). A master that
+    /// checks a mode against 6502h before selecting it (`od_master::Axis::with_sidecar`)
+    /// takes the mode as supported. Cite the manual's page in `note`.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub not_in_6502h: bool,
 }
 
 /// A homing method.
@@ -730,6 +753,21 @@ pub struct WarningBit {
     /// The reset rule in words.
     #[serde(default)]
     pub reset: Option<String>,
+    /// The bit says the drive is at its positive or negative position limit (the DRVI's 2006h
+    /// bits 6 and 7): a master that finds the drive limited (statusword bit 11) reads it to
+    /// know which way a move may still go.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub limit: Option<LimitSide>,
+}
+
+/// Which position limit (`"positive"` or `"negative"`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LimitSide {
+    /// The positive limit: moves in the positive direction go further into it.
+    Positive,
+    /// The negative limit.
+    Negative,
 }
 
 /// `[store]`: what 1010h "save" stores.

@@ -47,7 +47,10 @@
 //! * the machine: limit switches, end stops and a reference switch by default (the homings of
 //!   7.2.1.7 and 7.2.1.8 need them; [`default_environment`]), a free motor with `--machine
 //!   free`. A limit switch reached while moving towards it stops the trajectory (warning
-//!   8612h, bit 11): table 6.1 has no code for it.
+//!   8612h, bit 11): table 6.1 has no code for it. A command away from the switch releases
+//!   the stop even while the axis still brakes towards it: the new trajectory brakes and
+//!   reverses without being stopped again, until the switch goes off or a command heads for
+//!   it again.
 //! * numbers written over the ASCII channel are read with checked arithmetic and must fit the
 //!   parameter's type and limits after the bus factor ("Error: value out of range").
 
@@ -393,6 +396,10 @@ pub struct Akd {
     limit_fault: bool,
     /// The trajectory was stopped on a hardware limit switch: +1 positive, -1 negative.
     switch_stop: Option<i8>,
+    /// A command away from the limit switch on this side (+1, -1) released its stop: the
+    /// trajectory may still run towards the switch while it brakes to reverse, which does not
+    /// stop it again; cleared when that switch goes off or a command heads for it again.
+    leaving: Option<i8>,
     following_fault: bool,
     homing_failed: bool,
     /// Ticks since the homing completed (the AKD shows bit 10 one tick before bit 12).
@@ -430,6 +437,7 @@ impl Default for Akd {
             clip_warning: None,
             limit_fault: false,
             switch_stop: None,
+            leaving: None,
             following_fault: false,
             homing_failed: false,
             homing_done_ticks: 0,
@@ -586,15 +594,19 @@ impl Akd {
     /// with a command away from the switch or a mode change ([`Vendor::before_command`]).
     fn check_switches(&mut self, drive: &mut Drive, ctx: &mut Ctx<'_, Dictionary>, status: &Status) {
         let moving = drive.state() == State::OperationEnabled && drive.mode() != Mode::Homing && status.power;
+        let i = status.inputs;
+        if (self.leaving == Some(1) && !i.positive_limit) || (self.leaving == Some(-1) && !i.negative_limit) {
+            self.leaving = None;
+        }
         if self.switch_stop.is_none()
             && moving
             && let Some(side) = Self::switch_ahead(drive, status)
+            && self.leaving != Some(side)
         {
             self.switch_stop = Some(side);
             drive.axis_mut().quick_stop(StopRamp::QuickStopDeceleration);
             self.warn(drive, ctx, code::LIMIT_SWITCH);
         }
-        let i = status.inputs;
         if self.warnings.contains(&code::LIMIT_SWITCH) && !i.positive_limit && !i.negative_limit {
             self.unwarn(drive, ctx, code::LIMIT_SWITCH);
         }
@@ -602,6 +614,7 @@ impl Akd {
             // Another stop (a disable, quick stop or fault reaction of the state machine, or
             // the homing) has taken over the axis: it is not released here.
             self.switch_stop = None;
+            self.leaving = None;
         }
     }
 
@@ -1099,6 +1112,7 @@ impl Vendor<Dictionary> for Akd {
         self.clip_warning = None;
         self.limit_fault = false;
         self.switch_stop = None;
+        self.leaving = None;
         self.following_fault = false;
         self.homing_failed = false;
         self.heat_fault = false;
@@ -1240,8 +1254,24 @@ impl Vendor<Dictionary> for Akd {
             };
             match heading.map(|h| h * reversed) {
                 Some(h) if h == i64::from(side) => return false,
-                Some(_) => self.release_switch_stop(drive),
+                Some(_) => {
+                    self.release_switch_stop(drive);
+                    self.leaving = Some(side);
+                }
                 None => {}
+            }
+        } else if let Some(side) = self.leaving {
+            // Heading for the switch being left again: it stops the axis again when reached.
+            let reversed = if drive.axis().config().reverse_polarity { -1 } else { 1 };
+            let here = i64::from(drive.axis().status().position_actual);
+            let heading = match *cmd {
+                Command::SetPoint(sp) => Some((i64::from(sp.target) - if sp.relative { 0 } else { here }).signum()),
+                Command::TargetVelocity(v) => Some(i64::from(v).signum()),
+                Command::TargetTorque(t) => Some(i64::from(t).signum()),
+                _ => None,
+            };
+            if heading.map(|h| h * reversed) == Some(i64::from(side)) {
+                self.leaving = None;
             }
         }
         if let Command::SetPoint(sp) = cmd

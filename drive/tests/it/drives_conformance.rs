@@ -457,6 +457,36 @@ fn akd_limit_switches_stop_the_trajectory() {
     assert_eq!(m.statusword(3).unwrap() & 0x0880, 0);
 }
 
+/// A move away from a limit switch given while the axis still brakes onto it (a master's
+/// answer within milliseconds of the stop): the new trajectory brakes, reverses and reaches its
+/// target; the switch does not stop it again on the way out.
+#[test]
+fn akd_a_move_away_while_braking_onto_a_limit_switch_runs() {
+    let mut m = akd(3);
+    m.write_u32(3, 0x6092, 1, 10_000).unwrap(); // 10 000 units per turn
+    m.write_u32(3, 0x6081, 0, 40_000).unwrap(); // 4 turns/s
+    m.switch_on(3).unwrap();
+    m.set_mode(3, 1).unwrap();
+    m.write_i32(3, 0x607A, 0, 100_000).unwrap();
+    m.controlword(3, 0x1F).unwrap();
+    m.controlword(3, 0x0F).unwrap();
+    // Until the switch (+2 turns) stops the trajectory, and not until it stands.
+    let mut t = 0;
+    while m.statusword(3).unwrap() & 0x0800 == 0 && t < 2_000_000 {
+        m.advance(1_000);
+        t += 1_000;
+    }
+    let s = akd_node(&m).app().unwrap().drive().axis().status();
+    assert!(s.velocity_demand > 0, "still braking onto the switch: {}", s.velocity_demand);
+    m.write_i32(3, 0x607A, 0, 0).unwrap();
+    m.controlword(3, 0x1F).unwrap();
+    m.controlword(3, 0x0F).unwrap();
+    m.advance(3_000_000);
+    let sw = m.statusword(3).unwrap();
+    assert_eq!(sw & 0x0C80, 0x0400, "target reached, no limit, no warning: {sw:04X}");
+    assert_eq!(m.read_i64(3, 0x6064, 0).unwrap(), 0);
+}
+
 /// A disable while stopped on a limit switch: the AKD holds the axis in Switched on (6.4.1.1),
 /// and enabling again does not run into the switch.
 #[test]

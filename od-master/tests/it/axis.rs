@@ -94,7 +94,8 @@ async fn profile_velocity_reaches_its_speed() {
 async fn cyclic_synchronous_position_follows_a_set_point_per_sync() {
     let n = net(&[(DeviceKind::Akd, 4)]);
     pass(Duration::from_millis(5)).await;
-    let axis = Axis::new(n.bus.node(4).unwrap());
+    // The sidecar: the AKD runs cyclic synchronous position though its 6502h leaves it out.
+    let axis = Axis::new(n.bus.node(4).unwrap()).with_sidecar(&crate::harness::sidecar("kollmorgen-akd"));
     prepare(DeviceKind::Akd, &axis).await;
     axis.home(&Homing::method(35)).await.unwrap();
     n.bus.start_sync(Duration::from_millis(1), 0).await.unwrap();

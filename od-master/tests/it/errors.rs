@@ -7,12 +7,13 @@ use std::time::Duration;
 use drive::node::DeviceKind;
 use od_master::remote::{Unit, UnitError};
 use od_master::{
-    AbortCode, Axis, AxisError, AxisErrorKind, Error, HomingMethod, Impossible, Move, RegisterReading, SdoContext,
-    State, StatusRegister, StopReason, TransferError,
+    AbortCode, Axis, AxisError, AxisErrorKind, Error, HomingMethod, Impossible, Limit, LimitSource, Move,
+    RegisterReading, SdoContext, State, StatusRegister, StopReason, TransferError,
 };
 use od_runtime::master::{Direction, PdoError, SdoError};
+use od_sidecar::LimitSide;
 
-use crate::harness::{net, pass};
+use crate::harness::{net, pass, sidecar};
 
 fn transfer(direction: Direction, index: u16, sub: u8, error: SdoError) -> TransferError {
     TransferError { node: 4, direction, index, sub, error }
@@ -80,7 +81,38 @@ fn every_error_displays_and_debugs_its_facts() {
         ),
         axis(AxisErrorKind::Impossible(Impossible::NoHomingMethod), None),
         axis(AxisErrorKind::Impossible(Impossible::NoProfileVelocity), None),
-        axis(AxisErrorKind::Impossible(Impossible::Mode { mode: 8, supported: 0x65 }), None),
+        axis(AxisErrorKind::Impossible(Impossible::Mode { mode: 8, supported: 0x65, added: 0 }), None),
+        axis(AxisErrorKind::Impossible(Impossible::Mode { mode: 9, supported: 0x65, added: 0x88 }), None),
+        axis(AxisErrorKind::Impossible(Impossible::ModeNotListed { mode: 8, listed: vec![0, 1, 3, 4, 6, -1] }), None),
+        axis(
+            AxisErrorKind::Impossible(Impossible::IntoLimit {
+                limit: Limit { side: LimitSide::Positive, by: LimitSource::Switch { inputs: 0x0000_0002 } },
+                what: "a move to 120000 from 20950".into(),
+            }),
+            None,
+        ),
+        axis(
+            AxisErrorKind::Impossible(Impossible::IntoLimit {
+                limit: Limit { side: LimitSide::Negative, by: LimitSource::Software { value: -5000 } },
+                what: "a negative velocity".into(),
+            }),
+            None,
+        ),
+        axis(
+            AxisErrorKind::Stopped {
+                what: "target reached".into(),
+                why: StopReason::AtLimit(Limit {
+                    side: LimitSide::Positive,
+                    by: LimitSource::Register {
+                        index: 0x2006,
+                        sub: 0,
+                        bit: 6,
+                        text: "Positive position limit reached".into(),
+                    },
+                }),
+            },
+            None,
+        ),
         axis(AxisErrorKind::Stopped { what: "target reached".into(), why: StopReason::InternalLimit }, None),
         axis(
             AxisErrorKind::Stopped { what: "set-point acknowledge".into(), why: StopReason::Warning },
@@ -216,7 +248,7 @@ async fn a_mode_the_drive_does_not_list_is_refused_before_anything_is_written() 
     });
     let drive = Axis::new(n.bus.node(5).unwrap());
     let e = drive.home(HomingMethod(37)).await.unwrap_err();
-    assert_eq!(impossible(&e), &Impossible::Mode { mode: 6, supported: 1 });
+    assert_eq!(impossible(&e), &Impossible::Mode { mode: 6, supported: 1, added: 0 });
     assert!(
         e.to_string().ends_with(
             "6502h sub 0: the drive does not support mode 6 (homing): its supported drive modes 6502h = 00000001h \
@@ -266,10 +298,7 @@ async fn a_move_into_a_limit_switch_stops_the_wait_at_once() {
     // 2 turns at 4 turns/s: half a second, then at once.
     assert!(start.elapsed() < Duration::from_millis(1_500), "{:?}", start.elapsed());
     let Error::Axis(a) = &e else { panic!("{e}") };
-    assert!(
-        matches!(&a.kind, AxisErrorKind::Stopped { why: StopReason::InternalLimit | StopReason::Emergency { .. }, .. }),
-        "{e}"
-    );
+    assert!(matches!(&a.kind, AxisErrorKind::Stopped { why: StopReason::AtLimit(_), .. }), "{e}");
     assert!(e.to_string().contains("internal limit active"), "{e}");
 }
 
@@ -305,4 +334,163 @@ async fn generated_units_display_their_system_and_factors() {
     assert_eq!(format!("{units:?}"), format!("Units({units})"));
     let units = akd::remote::Remote::new(n.bus.node(4).unwrap()).units().await.unwrap();
     assert!(format!("{units:?}").len() < 200, "{units:?}");
+}
+
+/// On the AKD's positive limit switch (+2 turns), where the drive stopped a move (statusword
+/// bit 11 and 60FDh bit 1 standing): a move further positive, and a positive velocity, are
+/// refused at once naming the switch; a move negative is taken, leaves the switch and reaches
+/// its target.
+#[tokio::test(start_paused = true)]
+async fn on_a_limit_switch_a_move_further_in_is_refused_and_one_out_succeeds() {
+    let n = net(&[(DeviceKind::Akd, 4)]);
+    pass(Duration::from_millis(5)).await;
+    let akd = Axis::new(n.bus.node(4).unwrap()).with_sidecar(&sidecar("kollmorgen-akd"));
+    akd.node().write_idempotent(0x6092, 1, 10_000u32).await.unwrap();
+    akd.home(HomingMethod(35)).await.unwrap();
+    let m =
+        Move { velocity: Some(40_000), acceleration: Some(400_000), deceleration: Some(400_000), ..Move::default() };
+    let e = akd.move_to(100_000, &m).await.unwrap_err();
+    let Error::Axis(a) = &e else { panic!("{e}") };
+    assert!(
+        matches!(&a.kind, AxisErrorKind::Stopped { why: StopReason::AtLimit(l), .. }
+            if l.side == LimitSide::Positive && matches!(l.by, LimitSource::Switch { .. })),
+        "{e}"
+    );
+    assert!(e.to_string().contains("limited by its positive limit switch (digital inputs 60FDh"), "{e}");
+    let sw = akd.statusword().await.unwrap();
+    assert_ne!(sw & (1 << 11), 0, "standing on the switch: {sw:04X}h");
+    assert_eq!(akd.node().read::<u32>(0x60FD, 0).await.unwrap() & 3, 2, "60FDh: the positive switch");
+    let here = akd.position().await.unwrap();
+
+    // Further in: refused before anything is written, naming the switch.
+    let start = tokio::time::Instant::now();
+    let e = akd.move_to(120_000, &m).await.unwrap_err();
+    assert!(start.elapsed() < Duration::from_secs(1), "{:?}", start.elapsed());
+    assert!(
+        matches!(impossible(&e), Impossible::IntoLimit { limit, .. }
+            if limit.side == LimitSide::Positive && matches!(limit.by, LimitSource::Switch { inputs } if inputs & 3 == 2)),
+        "{e}"
+    );
+    assert!(
+        e.to_string().contains(": bit 1 set) and a move to 120000 from 20")
+            && e.to_string().contains("goes further into it; a move the other way is allowed"),
+        "{e}"
+    );
+    let e = akd.move_to(10_000, &Move { relative: true, ..m }).await.unwrap_err();
+    assert!(matches!(impossible(&e), Impossible::IntoLimit { .. }), "{e}");
+    let e = akd.run_velocity(1_000, None, None).await.unwrap_err();
+    assert!(e.to_string().contains("a positive velocity goes further into it"), "{e}");
+    assert!(start.elapsed() < Duration::from_secs(1), "{:?}", start.elapsed());
+    let now = akd.position().await.unwrap();
+    // (The axis settles by a few hundred counts after the quick stop on the switch.)
+    assert!((now - here).abs() < 1_000, "not moved towards 120000: {here} then {now}");
+
+    // Out: the standing warning (the switch's, bit 7) and bit 11 do not stop it.
+    let start = tokio::time::Instant::now();
+    assert_eq!(akd.move_to(0, &m).await.unwrap(), 0);
+    assert!(start.elapsed() < Duration::from_secs(2), "{:?}", start.elapsed());
+    let sw = akd.statusword().await.unwrap();
+    assert_eq!(sw & (1 << 11 | 1 << 7), 0, "off the switch: {sw:04X}h");
+}
+
+/// Modes against 6502h (supported drive modes), with what the sidecar says: the DRVI, which
+/// has no 6502h, is refused cyclic synchronous position by its sidecar's `[[mode]]` list, at
+/// once; the AKD's 6502h (65h) leaves the mode out, so it is refused without the sidecar and
+/// runs with it (`not_in_6502h`), as does profile torque.
+#[tokio::test(start_paused = true)]
+async fn modes_are_checked_against_6502h_and_the_sidecar() {
+    let n = net(&[(DeviceKind::Drvi, 2), (DeviceKind::Akd, 4)]);
+    pass(Duration::from_millis(5)).await;
+    let drvi = Axis::new(n.bus.node(2).unwrap()).with_sidecar(&sidecar("camozzi-drvi"));
+    let rpdo1 = drvi.node().read::<u32>(0x1400, 1).await.unwrap();
+    let start = tokio::time::Instant::now();
+    let e = drvi.cyclic_position(1, 0x202).await.unwrap_err();
+    assert_eq!(impossible(&e), &Impossible::ModeNotListed { mode: 8, listed: vec![0, 1, 3, 4, 6, -1] });
+    assert!(
+        e.to_string().ends_with(
+            "6060h sub 0: the drive does not support mode 8 (cyclic synchronous position): it has no 6502h \
+             (supported drive modes) and its sidecar lists the modes 0 (no mode), 1 (profile position), 3 (profile \
+             velocity), 4 (profile torque), 6 (homing), -1 (manufacturer-specific)"
+        ),
+        "{e}"
+    );
+    let e = drvi.set_mode(8).await.unwrap_err();
+    assert!(matches!(impossible(&e), Impossible::ModeNotListed { mode: 8, .. }), "{e}");
+    // An axis that has not read 6502h yet writes 6060h; the drive refuses it, and the error
+    // names the supported modes, not only the abort.
+    let fresh = Axis::new(n.bus.node(2).unwrap()).with_sidecar(&sidecar("camozzi-drvi"));
+    let e = fresh.set_mode(8).await.unwrap_err();
+    assert!(matches!(impossible(&e), Impossible::ModeNotListed { mode: 8, .. }), "{e}");
+    assert!(start.elapsed() < Duration::from_millis(100), "{:?}", start.elapsed());
+    assert_eq!(drvi.node().read::<u32>(0x1400, 1).await.unwrap(), rpdo1, "RPDO1 untouched");
+
+    let start = tokio::time::Instant::now();
+    let bare = Axis::new(n.bus.node(4).unwrap());
+    let e = bare.cyclic_position(4, 0x504).await.unwrap_err();
+    assert_eq!(impossible(&e), &Impossible::Mode { mode: 8, supported: 0x65, added: 0 });
+    assert!(e.to_string().contains("supported drive modes 6502h = 00000065h"), "{e}");
+    assert!(start.elapsed() < Duration::from_millis(200), "{:?}", start.elapsed());
+
+    let akd = Axis::new(n.bus.node(4).unwrap()).with_sidecar(&sidecar("kollmorgen-akd"));
+    akd.node().write_idempotent(0x6092, 1, 10_000u32).await.unwrap();
+    akd.home(HomingMethod(35)).await.unwrap();
+    n.bus.start_sync(Duration::from_millis(1), 0).await.unwrap();
+    let mut csp = akd.cyclic_position(4, 0x504).await.unwrap();
+    let here = akd.position().await.unwrap();
+    for k in 1..=20 {
+        csp.send(here + 10 * k).await.unwrap();
+    }
+    drop(csp);
+    akd.set_mode(4).await.unwrap();
+    let e = akd.set_mode(9).await.unwrap_err();
+    assert!(
+        e.to_string().ends_with(
+            "the drive does not support mode 9 (cyclic synchronous velocity): its supported drive modes 6502h = \
+             00000065h (profile position, profile velocity, homing, interpolated position), with profile torque, \
+             cyclic synchronous position taken from its sidecar (not_in_6502h)"
+        ),
+        "{e}"
+    );
+}
+
+/// The AKD's software position limits (607Dh, in force after save and restart, 6.11): a
+/// target beyond the positive one is clipped by the drive (statusword bit 11, warning n107), so
+/// the wait for it ends at once naming 607Dh sub 2; at the limit, a move further out is refused
+/// before anything is written, and a move back in is taken and succeeds.
+#[tokio::test(start_paused = true)]
+async fn a_target_beyond_a_software_limit_ends_at_once_naming_607dh() {
+    let n = net(&[(DeviceKind::Akd, 4)]);
+    pass(Duration::from_millis(5)).await;
+    let akd = Axis::new(n.bus.node(4).unwrap()).with_sidecar(&sidecar("kollmorgen-akd"));
+    let node = akd.node().clone();
+    node.write_idempotent(0x6092, 1, 10_000u32).await.unwrap();
+    node.write_idempotent(0x607D, 1, -5_000i32).await.unwrap();
+    node.write_idempotent(0x607D, 2, 5_000i32).await.unwrap();
+    node.write(0x1010, 1, u32::from_le_bytes(*b"save")).await.unwrap();
+    node.reset().await.unwrap();
+    pass(Duration::from_millis(50)).await;
+    assert_eq!(node.read::<i32>(0x607D, 2).await.unwrap(), 5_000, "kept over the restart");
+    akd.home(HomingMethod(35)).await.unwrap();
+    let m =
+        Move { velocity: Some(40_000), acceleration: Some(400_000), deceleration: Some(400_000), ..Move::default() };
+    let start = tokio::time::Instant::now();
+    let e = akd.move_to(9_000, &m).await.unwrap_err();
+    assert!(start.elapsed() < Duration::from_millis(200), "{:?}: {e}", start.elapsed());
+    let Error::Axis(a) = &e else { panic!("{e}") };
+    assert!(
+        matches!(&a.kind, AxisErrorKind::Stopped { why: StopReason::AtLimit(l), .. }
+            if l.side == LimitSide::Positive && l.by == LimitSource::Software { value: 5_000 }),
+        "{e}"
+    );
+    assert!(e.to_string().contains("positive software position limit (607Dh sub 2 = 5000)"), "{e}");
+    // The drive goes on to its limit, where it stands with bit 11.
+    pass(Duration::from_millis(500)).await;
+    assert_eq!(akd.position().await.unwrap(), 5_000);
+    assert_ne!(akd.statusword().await.unwrap() & (1 << 11), 0);
+    let e = akd.move_to(6_000, &m).await.unwrap_err();
+    assert!(
+        matches!(impossible(&e), Impossible::IntoLimit { limit, .. } if limit.by == LimitSource::Software { value: 5_000 }),
+        "{e}"
+    );
+    assert_eq!(akd.move_to(-4_000, &m).await.unwrap(), -4_000);
 }

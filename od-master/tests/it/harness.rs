@@ -36,6 +36,12 @@ pub fn net_with(nodes: &[(DeviceKind, u8)], config: Config) -> Net {
     Net { bus, sim }
 }
 
+/// The sidecar of a device of ours (`kollmorgen-akd`, `camozzi-drvi`, ...).
+pub fn sidecar(name: &str) -> od_sidecar::Sidecar {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../devices/{name}.toml"));
+    od_sidecar::Sidecar::read(&path).unwrap_or_else(|e| panic!("{e}"))
+}
+
 /// Lets `d` of virtual time pass.
 pub async fn pass(d: Duration) {
     tokio::time::sleep(d).await;

@@ -260,7 +260,10 @@ async fn over_the_hub_waits_that_cannot_succeed_end_at_once_saying_why() {
     let Error::Axis(a) = &e else { panic!("{e}") };
     // Whichever says it first: the statusword's bit 11 or the EMCY 8612h (limit switch).
     let why = match &a.kind {
-        AxisErrorKind::Stopped { why: why @ (StopReason::InternalLimit | StopReason::Emergency { .. }), .. } => why,
+        AxisErrorKind::Stopped {
+            why: why @ (StopReason::AtLimit(_) | StopReason::InternalLimit | StopReason::Emergency { .. }),
+            ..
+        } => why,
         _ => panic!("{e}"),
     };
     if let StopReason::Emergency { code, text } = why {
@@ -269,6 +272,16 @@ async fn over_the_hub_waits_that_cannot_succeed_end_at_once_saying_why() {
     }
     assert!(e.to_string().contains("internal limit active"), "{e}");
     eprintln!("AKD into its limit switch: {e}");
+    // On the switch: further in is refused at once, naming it; out is taken and succeeds.
+    let t = Instant::now();
+    let e = akd.move_to(120_000, &m).await.unwrap_err();
+    assert!(t.elapsed() < Duration::from_secs(1), "{:?}", t.elapsed());
+    assert!(matches!(&e, Error::Axis(a) if matches!(a.kind, AxisErrorKind::Impossible(Impossible::IntoLimit { .. }))));
+    assert!(e.to_string().contains("limited by its positive limit switch (digital inputs 60FDh = "), "{e}");
+    eprintln!("AKD further into its limit switch ({:?}): {e}", t.elapsed());
+    let t = Instant::now();
+    assert_eq!(akd.move_to(0, &m).await.unwrap_or_else(|e| panic!("{e}")), 0);
+    eprintln!("AKD out of its limit switch to 0: {:?}", t.elapsed());
 
     let drvi = Axis::new(bus.node(2).unwrap());
     drvi.home(HomingMethod(37)).await.unwrap_or_else(|e| panic!("{e}"));

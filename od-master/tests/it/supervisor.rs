@@ -489,7 +489,7 @@ async fn a_fault_that_stays_is_reset_a_bounded_number_of_times_then_reported() {
 async fn a_csp_stream_to_a_drive_that_rebooted_stops() {
     let rig = rig(&[(DeviceKind::Akd, 4)]);
     pass(Duration::from_millis(5)).await;
-    let axis = Axis::new(rig.bus.node(4).unwrap());
+    let axis = Axis::new(rig.bus.node(4).unwrap()).with_sidecar(&crate::harness::sidecar("kollmorgen-akd"));
     axis.node().write_idempotent(0x6092, 1, 10_000u32).await.unwrap();
     axis.home(&Homing::method(35)).await.unwrap();
     rig.bus.start_sync(Duration::from_millis(1), 0).await.unwrap();
