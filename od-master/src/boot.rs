@@ -141,7 +141,7 @@ impl Network {
         if outcome.has_errors() {
             return Err(LoadError::Invalid(od_codegen::network::render_all(&outcome.diagnostics)));
         }
-        let mut net = Network { supervision: outcome.supervision.into(), ..Network::default() };
+        let mut net = Network { supervision: outcome.supervision, ..Network::default() };
         let mut problems = Vec::new();
         for dcf in outcome.dcfs {
             match concise::plan(&dcf.model, dcf.node_id) {
@@ -153,7 +153,7 @@ impl Network {
                         device: dcf.device,
                         plan,
                         serial,
-                        supervision: dcf.supervision.into(),
+                        supervision: dcf.supervision,
                     })
                 }
                 Err(e) => problems.extend(e.iter().map(|p| format!("node `{}` ({}): {p}", dcf.name, dcf.device))),
