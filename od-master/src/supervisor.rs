@@ -238,6 +238,22 @@ pub enum SupervisorEvent {
         /// Objects read back.
         objects: usize,
     },
+    /// The node's device was given its node-ID over LSS (the description's `lss = true`)
+    /// before its boot.
+    LssAssigned {
+        /// Node id.
+        node: u8,
+        /// Its name.
+        name: String,
+        /// The device's serial number.
+        serial: u32,
+    },
+    /// A device without a node-ID that the description does not name was found by the LSS
+    /// step's fastscan: left as it is.
+    LssUnknown {
+        /// Its identity.
+        identity: crate::lss::Identity,
+    },
     /// The bus's own state changed.
     Bus(BusState),
 }
@@ -283,6 +299,12 @@ impl std::fmt::Display for SupervisorEvent {
             }
             SupervisorEvent::Verified { node, name, objects } => {
                 write!(f, "{name} (node {node}): configuration read back ({objects} objects), unchanged")
+            }
+            SupervisorEvent::LssAssigned { node, name, serial } => {
+                write!(f, "{name} (node {node}): node-ID given over LSS to the device of serial number {serial}")
+            }
+            SupervisorEvent::LssUnknown { identity } => {
+                write!(f, "LSS: a device without a node-ID the description does not name ({identity}): left as it is")
             }
             SupervisorEvent::Bus(state) => write!(f, "{state}"),
         }
@@ -396,8 +418,17 @@ impl Supervisor {
         for n in &self.network.nodes {
             self.watch(n).await;
         }
+        // The nodes marked for LSS get their node-ID first; those that cannot are not booted.
         let all = to_boot.len() == self.network.nodes.len();
-        let reports = boot::boot_nodes(&self.bus, &to_boot, true, &|n| n.supervision.start, all).await;
+        let (lss, reports) = boot::boot_with_lss(&self.bus, &to_boot, true, &|n| n.supervision.start, all).await;
+        for (id, node, _) in lss.iter().flat_map(|c| &c.assigned) {
+            if let Some(n) = to_boot.iter().find(|n| n.node_id == *node) {
+                self.emit(SupervisorEvent::LssAssigned { node: *node, name: n.name.clone(), serial: id.serial });
+            }
+        }
+        for identity in lss.iter().flat_map(|c| &c.unknown) {
+            self.emit(SupervisorEvent::LssUnknown { identity: *identity });
+        }
         for r in &reports {
             self.settle_boot(r, &mut runs, &mut summary, None).await;
         }
@@ -642,6 +673,7 @@ impl Supervisor {
                     boot::BootError::Identity { .. } => Stage::Identity,
                     boot::BootError::NoHeartbeat { .. } => Stage::Nmt,
                     boot::BootError::Bus { stage, .. } => *stage,
+                    boot::BootError::Lss { .. } | boot::BootError::NoBootUp { .. } => Stage::Lss,
                 };
                 self.emit(SupervisorEvent::BootFailed {
                     node: r.node_id,

@@ -71,6 +71,12 @@ pub struct NodeDesc {
     /// `serial`: the device's serial number (1018h sub 4), which LSS finds it by (the DCF's
     /// `LSS_SerialNumber`).
     pub serial: Option<Located<i128>>,
+    /// `lss` (default false): the master gives the device of `serial` (and the EDS's identity)
+    /// this node-ID over LSS (CiA 305) before it boots the network.
+    pub lss: bool,
+    /// `lss_store` (default true): the node-ID given over LSS is stored in the device (it keeps
+    /// it across a power cycle); false: given again at every boot.
+    pub lss_store: bool,
     /// `[nodes.NAME.parameters]`, in file order.
     pub parameters: Vec<(Located<String>, Located<Scalar>)>,
     /// `tpdoN` / `rpdoN`, in file order.
@@ -267,13 +273,26 @@ impl<'a> Reader<'a> {
             node_id: None,
             baud_rate: None,
             serial: None,
+            lss: false,
+            lss_store: true,
             parameters: Vec::new(),
             pdos: Vec::new(),
             supervision: NodeSupervision::default(),
         };
-        const KNOWN: &[&str] =
-            &["device", "node_id", "baud_rate", "serial", "parameters", "supervision", "tpdoN", "rpdoN"];
+        const KNOWN: &[&str] = &[
+            "device",
+            "node_id",
+            "baud_rate",
+            "serial",
+            "lss",
+            "lss_store",
+            "parameters",
+            "supervision",
+            "tpdoN",
+            "rpdoN",
+        ];
         let mut present = (false, false);
+        let (mut lss_span, mut lss_store_span) = (None, None);
         for (k, v) in sorted(t) {
             let key = k.get_ref().as_ref();
             match key {
@@ -287,6 +306,14 @@ impl<'a> Reader<'a> {
                 }
                 "baud_rate" => node.baud_rate = self.integer(v, "`baud_rate`"),
                 "serial" => node.serial = self.integer(v, "`serial`"),
+                "lss" => {
+                    node.lss = self.boolean(v, "`lss`").unwrap_or(false);
+                    lss_span = Some(v.span());
+                }
+                "lss_store" => {
+                    node.lss_store = self.boolean(v, "`lss_store`").unwrap_or(true);
+                    lss_store_span = Some(v.span());
+                }
                 "supervision" => {
                     if let Some(t) = self.table(v, "`supervision`") {
                         node.supervision = self.node_supervision(t, &node_name);
@@ -323,6 +350,28 @@ impl<'a> Reader<'a> {
                 Diagnostic::error(codes::MISSING_KEY, format!("node `{node_name}` has no `node_id`"))
                     .at(self.snippet(name.span()))
                     .help("give it a node id from 1 to 127: `node_id = 2`"),
+            );
+        }
+        if let Some(span) = lss_span
+            && node.lss
+            && node.serial.is_none()
+        {
+            self.push(
+                Diagnostic::error(
+                    codes::MISSING_KEY,
+                    format!("node `{node_name}`: `lss = true` needs the device's serial number"),
+                )
+                .at(self.snippet(span))
+                .help("LSS finds the device by its identity: add `serial = N` (its 1018h sub 4)"),
+            );
+        }
+        if let Some(span) = lss_store_span
+            && !node.lss
+        {
+            self.push(
+                Diagnostic::error(codes::BAD_VALUE, format!("node `{node_name}`: `lss_store` without `lss = true`"))
+                    .at(self.snippet(span))
+                    .help("add `lss = true` (the node-ID given over LSS at boot), or remove `lss_store`"),
             );
         }
         Some(node)

@@ -219,3 +219,103 @@ async fn inquire_bit_rate_and_identify() {
     assert_eq!(stored, "node_id = 9\nbit_rate = 2\n");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// networks/example.toml with the serial numbers of `DRIVES` (x, y, z) and `lss = true` in the
+/// nodes `marked` names.
+fn example_marked(marked: &[&str]) -> Network {
+    let text = std::fs::read_to_string(repo().join("networks/example.toml")).unwrap();
+    let mut out = String::new();
+    let mut serials = DRIVES.iter().map(|d| d.1);
+    let mut node = String::new();
+    for line in text.lines() {
+        out.push_str(line);
+        out.push('\n');
+        if let Some(name) = line.strip_prefix("[nodes.") {
+            node = name.trim_end_matches(']').to_owned();
+        }
+        if line.starts_with("node_id = ") {
+            out.push_str(&format!("serial = {}\n", serials.next().unwrap()));
+            if marked.contains(&node.as_str()) {
+                out.push_str("lss = true\n");
+            }
+        }
+    }
+    Network::from_description_text("example-lss.toml", &repo().join("networks"), &out).expect("the marked example")
+}
+
+#[tokio::test(start_paused = true)]
+async fn boot_gives_the_marked_nodes_their_node_id_first_then_boots_them() {
+    let dir = state_dir("boot-lss");
+    let network = example_marked(&["x_axis", "y_axis", "z_axis"]);
+    assert!(network.nodes.iter().all(|n| n.lss && n.lss_store));
+    let n = unconfigured(&dir);
+    pass(Duration::from_millis(20)).await;
+    assert_eq!(active_ids(&n), [None, None, None]);
+    let start = tokio::time::Instant::now();
+    let outcome = boot::boot_network(&n.bus, &network, &BootOptions::default()).await;
+    let took = start.elapsed();
+    let lss = outcome.lss.expect("an LSS step");
+    assert_eq!(
+        lss.assigned.iter().map(|a| (a.0.serial, a.1, a.2)).collect::<Vec<_>>(),
+        [(1001, 2, None), (1002, 3, None), (1003, 4, None)]
+    );
+    assert!(lss.unknown.is_empty() && lss.in_place.is_empty() && lss.failed.is_empty(), "{lss:?}");
+    for r in &outcome.nodes {
+        assert!(r.result.is_ok() && r.started, "{r:?}");
+    }
+    assert_eq!(active_ids(&n), [Some(2), Some(3), Some(4)]);
+    // Three switch-selective steps, the boot (SDO, heartbeats at 100 ms): well under a second.
+    assert!(took < Duration::from_secs(1), "boot with LSS took {took:?}");
+    // Stored: the next boot finds them in place and configures no node-ID.
+    let outcome = boot::boot_network(&n.bus, &network, &BootOptions::default()).await;
+    let lss = outcome.lss.expect("an LSS step");
+    assert!(lss.assigned.is_empty(), "{lss:?}");
+    assert_eq!(lss.in_place.iter().map(|p| p.1).collect::<Vec<_>>(), [2, 3, 4]);
+    assert!(outcome.nodes.iter().all(|r| r.result.is_ok()), "{:?}", outcome.nodes);
+    assert!(std::fs::read_to_string(dir.join("drvi-sn1001.lss")).unwrap().starts_with("node_id = 2\n"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[tokio::test(start_paused = true)]
+async fn boot_fails_a_marked_node_whose_device_is_missing_and_leaves_others_alone() {
+    let dir = state_dir("boot-lss-missing");
+    // x and y are marked; the DRCS of y (serial 1002) is not there; z is not marked and is at
+    // its node-ID already; a DRVI the description does not know waits without a node-ID.
+    let network = example_marked(&["x_axis", "y_axis"]);
+    let n = net(vec![
+        drive(DeviceKind::Drvi, 255, 1001, &dir),
+        drive(DeviceKind::Akd, 4, 1003, &dir),
+        drive(DeviceKind::Drvi, 255, 77, &dir),
+    ]);
+    pass(Duration::from_millis(20)).await;
+    let start = tokio::time::Instant::now();
+    let outcome = boot::boot_network(&n.bus, &network, &BootOptions::default()).await;
+    let took = start.elapsed();
+    let lss = outcome.lss.expect("an LSS step");
+    assert_eq!(lss.assigned.iter().map(|a| (a.0.serial, a.1)).collect::<Vec<_>>(), [(1001, 2)]);
+    assert_eq!(lss.unknown.iter().map(|i| i.serial).collect::<Vec<_>>(), [77], "reported");
+    let [x, y, z] = &outcome.nodes[..] else { panic!("{:?}", outcome.nodes) };
+    assert!(x.result.is_ok() && x.started, "{x:?}");
+    assert!(z.result.is_ok() && z.started, "{z:?}");
+    let e = y.result.as_ref().unwrap_err();
+    assert!(matches!(e, boot::BootError::Lss { node: 3, serial: 1002, .. }), "{e:?}");
+    let text = e.to_string();
+    assert!(
+        text.starts_with("node 3 (y_axis): giving the device of serial number 1002 its node-ID over LSS failed: "),
+        "{text}"
+    );
+    assert!(
+        text.contains("LSS switch state selective (") && text.contains("serial 000003EAh): no answer within"),
+        "{text}"
+    );
+    assert!(!y.started);
+    let sim = n.sim.lock().unwrap();
+    assert_eq!(sim.node(0).active_node_id().map(|i| i.get()), Some(2));
+    assert_eq!(sim.node(1).active_node_id().map(|i| i.get()), Some(4));
+    assert_eq!(sim.node(2).active_node_id(), None, "the unknown device is left alone");
+    drop(sim);
+    // At once: one switch-selective timeout for the missing device, one fastscan of the
+    // unknown one, the boot of the others; no wait runs to a long timeout.
+    assert!(took < Duration::from_secs(3), "took {took:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
