@@ -272,11 +272,14 @@ pub struct BootOptions {
     pub start: bool,
     /// Boot the nodes at the same time (default true), or one after another.
     pub concurrent: bool,
+    /// The LSS step timeout for the nodes marked `lss = true` (default
+    /// [`crate::lss::DEFAULT_TIMEOUT`], 20 ms; raise it on a loaded host or a slow gateway).
+    pub lss_step_timeout: Duration,
 }
 
 impl Default for BootOptions {
     fn default() -> Self {
-        Self { start: true, concurrent: true }
+        Self { start: true, concurrent: true, lss_step_timeout: Duration::from_micros(crate::lss::DEFAULT_TIMEOUT) }
     }
 }
 
@@ -460,13 +463,15 @@ pub struct BootOutcome {
 }
 
 /// [`boot`], with what the LSS step did. The nodes the description marks for LSS (`lss =
-/// true`, with `serial`) first get their node-ID ([`crate::lss::Lss::commission`], with the
-/// bus's LSS session at the default step timeout), and boot waits for the boot-up of each
+/// true`, with `serial`) first get their node-ID ([`crate::lss::Lss::commission`], at
+/// [`BootOptions::lss_step_timeout`]), and boot waits for the boot-up of each
 /// one given a new node-ID ([`LSS_BOOT_UP`] at most); a node whose device cannot be given its
 /// node-ID fails ([`BootError::Lss`], [`BootError::NoBootUp`]) and is not booted; the others
 /// boot as usual. Nodes not marked are not touched by the LSS step.
 pub async fn boot_network(bus: &Bus, network: &Network, options: &BootOptions) -> BootOutcome {
-    let (lss, nodes) = boot_with_lss(bus, &network.nodes, options.concurrent, &|_| options.start, true).await;
+    let (lss, nodes) =
+        boot_with_lss(bus, &network.nodes, options.concurrent, &|_| options.start, true, options.lss_step_timeout)
+            .await;
     BootOutcome { lss, nodes }
 }
 
@@ -478,8 +483,9 @@ pub(crate) async fn boot_with_lss(
     concurrent: bool,
     start_it: &(dyn Fn(&BootNode) -> bool + Sync),
     all_at_once: bool,
+    lss_step_timeout: Duration,
 ) -> (Option<crate::lss::Commissioning>, Vec<NodeReport>) {
-    let (lss, mut failed) = commission(bus, nodes).await;
+    let (lss, mut failed) = commission(bus, nodes, lss_step_timeout).await;
     let ready: Vec<BootNode> =
         nodes.iter().enumerate().filter(|(i, _)| !failed.contains_key(i)).map(|(_, n)| n.clone()).collect();
     let all_at_once = all_at_once && failed.is_empty();
@@ -505,7 +511,11 @@ pub(crate) async fn boot_with_lss(
 
 /// The LSS step of a boot: the marked nodes' devices given their node-ID, and the boot-ups of
 /// those given a new one waited for. The nodes that failed, by their place in `nodes`.
-async fn commission(bus: &Bus, nodes: &[BootNode]) -> (Option<crate::lss::Commissioning>, BTreeMap<usize, BootError>) {
+async fn commission(
+    bus: &Bus,
+    nodes: &[BootNode],
+    step_timeout: Duration,
+) -> (Option<crate::lss::Commissioning>, BTreeMap<usize, BootError>) {
     use crate::lss::{Identity, Lss, LssNode};
     let mut failed = BTreeMap::new();
     let marked: Vec<(usize, &BootNode, LssNode)> = nodes
@@ -525,7 +535,9 @@ async fn commission(bus: &Bus, nodes: &[BootNode]) -> (Option<crate::lss::Commis
     let plan: Vec<LssNode> = marked.iter().map(|m| m.2).collect();
     // Subscribed before the first request: no boot-up is missed.
     let mut frames = bus.frames();
-    let mut commissioning = match Lss::new(bus).commission(&plan).await {
+    let mut session = Lss::new(bus);
+    session.set_timeout(step_timeout);
+    let mut commissioning = match session.commission(&plan).await {
         Ok(c) => c,
         Err(error) => {
             // The scan itself failed: no marked node can be booted; each says why.

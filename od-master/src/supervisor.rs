@@ -334,6 +334,7 @@ pub struct Supervisor {
     bus: Bus,
     network: Network,
     events: broadcast::Sender<SupervisorEvent>,
+    lss_step_timeout: Duration,
 }
 
 /// What the loop knows about one node.
@@ -370,7 +371,13 @@ impl Supervisor {
     /// A supervisor of `network` on `bus`. Nothing happens until [`Supervisor::run`].
     pub fn new(bus: Bus, network: Network) -> Self {
         let (events, _) = broadcast::channel(1024);
-        Self { bus, network, events }
+        Self { bus, network, events, lss_step_timeout: Duration::from_micros(crate::lss::DEFAULT_TIMEOUT) }
+    }
+
+    /// Sets the LSS step timeout of the first boot's LSS step (the nodes marked `lss = true`;
+    /// default [`crate::lss::DEFAULT_TIMEOUT`]).
+    pub fn set_lss_step_timeout(&mut self, timeout: Duration) {
+        self.lss_step_timeout = timeout;
     }
 
     /// Subscribes to its events from now on (subscribe before [`Supervisor::run`] to see the
@@ -420,7 +427,8 @@ impl Supervisor {
         }
         // The nodes marked for LSS get their node-ID first; those that cannot are not booted.
         let all = to_boot.len() == self.network.nodes.len();
-        let (lss, reports) = boot::boot_with_lss(&self.bus, &to_boot, true, &|n| n.supervision.start, all).await;
+        let (lss, reports) =
+            boot::boot_with_lss(&self.bus, &to_boot, true, &|n| n.supervision.start, all, self.lss_step_timeout).await;
         for (id, node, _) in lss.iter().flat_map(|c| &c.assigned) {
             if let Some(n) = to_boot.iter().find(|n| n.node_id == *node) {
                 self.emit(SupervisorEvent::LssAssigned { node: *node, name: n.name.clone(), serial: id.serial });

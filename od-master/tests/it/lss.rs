@@ -106,7 +106,7 @@ async fn three_drives_without_node_id_are_found_assigned_and_boot_after_a_power_
     let n = unconfigured(&dir);
     pass(Duration::from_millis(20)).await;
     assert_eq!(active_ids(&n), [Some(2), Some(3), Some(4)]);
-    let reports = boot::boot(&n.bus, &network, &BootOptions { start: true, concurrent: true }).await;
+    let reports = boot::boot(&n.bus, &network, &BootOptions::default()).await;
     for r in &reports {
         assert!(r.result.is_ok() && r.started, "{r:?}");
     }
@@ -131,7 +131,7 @@ async fn three_drives_all_at_node_1_unconfigure_all_then_assign() {
     assert_eq!(report.assigned.len(), 3, "{report:?}");
     pass(Duration::from_millis(5)).await;
     assert_eq!(active_ids(&n), [Some(2), Some(3), Some(4)]);
-    let reports = boot::boot(&n.bus, &network, &BootOptions { start: true, concurrent: true }).await;
+    let reports = boot::boot(&n.bus, &network, &BootOptions::default()).await;
     assert!(reports.iter().all(|r| r.result.is_ok()), "{reports:?}");
     let _ = std::fs::remove_dir_all(&dir);
 }
