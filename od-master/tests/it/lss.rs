@@ -324,15 +324,20 @@ async fn boot_fails_a_marked_node_whose_device_is_missing_and_leaves_others_alon
 fn lss_keys_are_read_and_checked() {
     let text = std::fs::read_to_string(repo().join("networks/example.toml")).unwrap();
     let with = |extra: &str| text.replacen("node_id = 2\n", &format!("node_id = 2\n{extra}"), 1);
-    let n = Network::from_description_text("x.toml", &repo().join("networks"), &with("serial = 5\nlss = true\nlss_store = false\n"))
-        .unwrap();
+    let n = Network::from_description_text(
+        "x.toml",
+        &repo().join("networks"),
+        &with("serial = 5\nlss = true\nlss_store = false\n"),
+    )
+    .unwrap();
     assert!(n.nodes[0].lss && !n.nodes[0].lss_store && n.nodes[0].serial == Some(5));
     assert!(!n.nodes[1].lss && n.nodes[1].lss_store, "not marked by default");
     let e = Network::from_description_text("x.toml", &repo().join("networks"), &with("lss = true\n")).unwrap_err();
     assert!(e.to_string().contains("node `x_axis`: `lss = true` needs the device's serial number"), "{e}");
     assert!(e.to_string().contains("add `serial = N`"), "{e}");
-    let e = Network::from_description_text("x.toml", &repo().join("networks"), &with("lss_store = false\nlss = \"yes\"\n"))
-        .unwrap_err()
-        .to_string();
+    let e =
+        Network::from_description_text("x.toml", &repo().join("networks"), &with("lss_store = false\nlss = \"yes\"\n"))
+            .unwrap_err()
+            .to_string();
     assert!(e.contains("`lss_store` without `lss = true`") && e.contains("`lss`"), "{e}");
 }
