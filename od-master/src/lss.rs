@@ -361,7 +361,10 @@ impl Lss {
     pub async fn assign(&mut self, plan: &[(Identity, u8)]) -> Result<Assignment, Error> {
         let nodes: Vec<LssNode> =
             plan.iter().map(|&(identity, node_id)| LssNode { identity, node_id, store: true }).collect();
-        let c = self.commission_with(&nodes, true).await?;
+        let mut c = self.commission_with(&nodes, true).await?;
+        if let Some(e) = c.scan_error.take() {
+            return Err(e);
+        }
         let mut report = Assignment { unknown: c.unknown, ..Assignment::default() };
         report.assigned = c.assigned.iter().map(|a| (a.0, a.1)).chain(c.in_place).collect();
         for (p, e) in c.failed {
@@ -436,7 +439,12 @@ impl Lss {
                 Err(e) => return Err(e),
             }
         }
-        report.unknown = self.scan([None; 4]).await?;
+        // The assignments stand whatever this scan meets (a late answer on a loaded host).
+        match self.scan([None; 4]).await {
+            Ok(found) => report.unknown = found,
+            Err(e @ Error::Lss { .. }) => report.scan_error = Some(e),
+            Err(e) => return Err(e),
+        }
         Ok(report)
     }
 }
@@ -472,6 +480,9 @@ pub struct Commissioning {
     /// Devices of the plan that could not be given their node-ID, with the error (a timeout of
     /// the switch state selective: no device has that identity on the bus).
     pub failed: Vec<(LssNode, Error)>,
+    /// The fastscan for the devices the plan does not name failed (devices without a node-ID
+    /// may be missing from `unknown`); the assignments above stand.
+    pub scan_error: Option<Error>,
 }
 
 /// The LSS plan of a network: for each node whose description gives a serial number, the

@@ -80,6 +80,13 @@ pub async fn run(bus: &od_master::Bus, network: &Network, options: &BootOptions,
                 let _ = writeln!(out, "{name} (node {node}): node-ID given over LSS (serial {}, had {had})", id.serial);
             }
         }
+        if let Some(e) = &lss.scan_error {
+            if json {
+                let _ = writeln!(out, "{}", json!({ "lss": "scan_failed", "error": e.to_string() }));
+            } else {
+                eprintln!("od-master: LSS: the search for devices the description does not name failed: {e}");
+            }
+        }
         for id in &lss.unknown {
             if json {
                 let _ = writeln!(
