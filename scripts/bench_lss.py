@@ -13,8 +13,8 @@ serial numbers 1001, 1002, 1003, on one `drive-sim hub`:
 
 Each od-master run starts from fresh drives. Prints wall time and LSS frames for each.
 Usage: scripts/bench_lss.py [--skip-python] [--rounds N] (run from the repository root, after
-`cargo build -p drive --bin drive-sim -p od-master-cli`; OD_MASTER=path runs another od-master
-build, e.g. an older one, on the same rig).
+`cargo build -p drive --bin drive-sim -p od-master-cli`; OD_MASTER=path and DRIVE_SIM=path run
+other builds, e.g. older ones, for a before/after on the same machine).
 """
 
 import os
@@ -24,7 +24,7 @@ import tempfile
 import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-SIM = os.path.join(ROOT, "target/debug/drive-sim")
+SIM = os.environ.get("DRIVE_SIM", os.path.join(ROOT, "target/debug/drive-sim"))
 MASTER = os.environ.get("OD_MASTER", os.path.join(ROOT, "target/debug/od-master"))
 EDS = os.path.join(ROOT, "devices/camozzi-drvi.eds")
 SERIALS = [1001, 1002, 1003]
