@@ -45,9 +45,9 @@ pub struct Lss {
 pub const FASTSCAN_ATTEMPTS: u32 = 3;
 
 /// How long the steps of a session wait at least until its first answer: a bus just opened
-/// over `drive-sim hub` delivers its first answers 30 to 60 ms late (measured: an SDO read or
-/// an LSS inquiry right after the handshake needs a timeout over 45 ms, the same one 30 ms
-/// later answers in under 1 ms).
+/// over `drive-sim hub` delivers its first frames up to 50 ms late (the hub's pause after its
+/// reply to `< rawmode >`, which python-can needs to read that reply alone; measured: the
+/// first answer 50 ms after the handshake, the next ones in under 1 ms).
 pub const FIRST_ANSWER: Duration = Duration::from_millis(100);
 
 /// What [`Lss::assign`] did.
