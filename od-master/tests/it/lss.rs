@@ -341,3 +341,23 @@ fn lss_keys_are_read_and_checked() {
             .to_string();
     assert!(e.contains("`lss_store` without `lss = true`") && e.contains("`lss`"), "{e}");
 }
+
+#[tokio::test(start_paused = true)]
+async fn boot_moves_a_marked_device_found_at_another_node_id() {
+    let dir = state_dir("boot-lss-moved");
+    // x's DRVI answers at node 9 (someone set it by hand); the description wants node 2.
+    let network = example_marked(&["x_axis"]);
+    let n = net(vec![
+        drive(DeviceKind::Drvi, 9, 1001, &dir),
+        drive(DeviceKind::Drcs, 3, 1002, &dir),
+        drive(DeviceKind::Akd, 4, 1003, &dir),
+    ]);
+    pass(Duration::from_millis(20)).await;
+    let outcome = boot::boot_network(&n.bus, &network, &BootOptions::default()).await;
+    let lss = outcome.lss.expect("an LSS step");
+    assert_eq!(lss.assigned.iter().map(|a| (a.0.serial, a.1, a.2)).collect::<Vec<_>>(), [(1001, 2, Some(9))]);
+    assert!(outcome.nodes.iter().all(|r| r.result.is_ok() && r.started), "{:?}", outcome.nodes);
+    // Reset at its old node-ID: it runs at node 2 now, not at its next power cycle.
+    assert_eq!(active_ids(&n), [Some(2), Some(3), Some(4)]);
+    let _ = std::fs::remove_dir_all(&dir);
+}
