@@ -4,13 +4,17 @@ serial numbers 1001, 1002, 1003, on one `drive-sim hub`:
 
   1. `od-master lss scan`              full fastscan, default step timeout
   2. `od-master --eds DRVI lss scan`   vendor, product and revision from the EDS matched
-  3. `od-master lss assign NET.toml`   found (narrowed scan) and given nodes 2, 3, 4, stored
+  3. `od-master lss assign NET.toml`   given nodes 2, 3, 4 by their identity (switch state
+     selective; a fastscan for devices the description does not name), stored
+  3b. `od-master boot NET-lss.toml`    the same network with `lss = true` on each node: the
+     LSS step (node-IDs given, boot-ups waited for), then the boot (identity, writes, start)
   4. python-canopen `LssMaster.fast_scan()` (its default 0.5 s answer timeout), each found
      drive given a node-ID so that the next scan finds the next one
 
 Each od-master run starts from fresh drives. Prints wall time and LSS frames for each.
-Usage: scripts/bench_lss.py [--skip-python] (run from the repository root, after
-`cargo build -p drive --bin drive-sim -p od-master-cli`).
+Usage: scripts/bench_lss.py [--skip-python] [--rounds N] (run from the repository root, after
+`cargo build -p drive --bin drive-sim -p od-master-cli`; OD_MASTER=path and DRIVE_SIM=path run
+other builds, e.g. older ones, for a before/after on the same machine).
 """
 
 import os
@@ -20,8 +24,8 @@ import tempfile
 import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-SIM = os.path.join(ROOT, "target/debug/drive-sim")
-MASTER = os.path.join(ROOT, "target/debug/od-master")
+SIM = os.environ.get("DRIVE_SIM", os.path.join(ROOT, "target/debug/drive-sim"))
+MASTER = os.environ.get("OD_MASTER", os.path.join(ROOT, "target/debug/od-master"))
 EDS = os.path.join(ROOT, "devices/camozzi-drvi.eds")
 SERIALS = [1001, 1002, 1003]
 
@@ -58,28 +62,43 @@ def master(addr, *args):
     return time.monotonic() - t, out
 
 
-def network(dir):
-    path = os.path.join(dir, "three-drvi.toml")
+def network(dir, lss=False):
+    path = os.path.join(dir, "three-drvi-lss.toml" if lss else "three-drvi.toml")
     with open(path, "w") as f:
         f.write("[network]\nbaud_rate = 1000\n")
         for i, s in enumerate(SERIALS):
             f.write(f'\n[nodes.axis{i}]\ndevice = "{EDS}"\nnode_id = {2 + i}\nserial = {s}\n')
+            if lss:
+                f.write("lss = true\n")
     return path
+
+
+def rounds():
+    if "--rounds" in sys.argv:
+        return int(sys.argv[sys.argv.index("--rounds") + 1])
+    return 1
 
 
 def main():
     with tempfile.TemporaryDirectory() as dir:
         net = network(dir)
-        for name, args in [("full scan", ["lss", "scan"]), ("EDS-narrowed scan", ["--eds", EDS, "lss", "scan"])]:
+        marked = network(dir, lss=True)
+        for _ in range(rounds()):
+            for name, args in [("full scan", ["lss", "scan"]), ("EDS-narrowed scan", ["--eds", EDS, "lss", "scan"])]:
+                hub, drives, addr = rig()
+                dt, out = master(addr, *args)
+                stop(drives, hub)
+                print(f"od-master {name}: {dt:.3f} s: {out.stdout.strip().splitlines()[-1] if out.stdout else out.stderr.strip()}")
             hub, drives, addr = rig()
-            dt, out = master(addr, *args)
+            dt, out = master(addr, "lss", "assign", net)
             stop(drives, hub)
-            print(f"od-master {name}: {dt:.3f} s: {out.stdout.strip().splitlines()[-1] if out.stdout else out.stderr.strip()}")
-        hub, drives, addr = rig()
-        dt, out = master(addr, "lss", "assign", net)
-        stop(drives, hub)
-        print(f"od-master lss assign (fastscan narrowed by the description's identity, each found drive "
-              f"configured and stored): {dt:.3f} s: " + "; ".join(out.stdout.strip().splitlines()) + out.stderr.strip())
+            print(f"od-master lss assign (found and assigned nodes 2, 3, 4, stored): {dt:.3f} s: "
+                  + "; ".join(out.stdout.strip().splitlines()) + out.stderr.strip())
+            hub, drives, addr = rig()
+            dt, out = master(addr, "boot", marked)
+            stop(drives, hub)
+            print(f"od-master boot, nodes marked lss = true (assigned, boot-ups, then booted): {dt:.3f} s: "
+                  + "; ".join(out.stdout.strip().splitlines()) + out.stderr.strip())
         if "--skip-python" in sys.argv:
             return
         import canopen

@@ -75,7 +75,8 @@ pub struct HubConfig {
     /// Frames dropped for a slow client are logged (and reported to clients that asked with
     /// `< dropreport >`) at most this often.
     pub drop_report_interval: Duration,
-    /// Pause after each `< ok >` before the next frame goes to that client. python-can reads
+    /// Pause after the `< ok >` to `< rawmode >` (the reply frames follow) before the next frame
+    /// goes to that client. python-can reads
     /// each handshake reply with one `recv` and compares the whole text with `< ok >`, so a
     /// frame arriving right behind the reply (likely on a bus busy with heartbeats) would make
     /// its connect fail; frames meanwhile are queued, not lost.
@@ -768,6 +769,7 @@ impl Session<'_> {
             (Message::RawMode, Mode::Bcm) => {
                 // `< ok >` goes out before the first frame: python-can waits for it alone.
                 self.connection.reply(Message::Ok);
+                self.connection.pause();
                 if let Some(channel) = &self.channel {
                     channel.join(self.connection.id, Arc::clone(self.connection) as Arc<dyn Sink>);
                 }
@@ -824,6 +826,10 @@ enum Outgoing {
     Frame(CanFrame, Timestamp),
     /// A reply to the client's own command; written on its own.
     Reply(Message),
+    /// `reply_pause` before what comes next (after the reply to `< rawmode >`, which frames
+    /// follow; not after the one to `< open >`, which nothing can follow before the client's
+    /// `< rawmode >`: a pause there only delayed that reply and the first frames).
+    Pause,
     /// The rest of a frame that was being sent directly when the socket filled up.
     Rest(String),
 }
@@ -861,6 +867,13 @@ impl Connection {
     fn reply(&self, message: Message) {
         if let Err(PushError::Full) = self.queue.push_within(Outgoing::Reply(message), self.capacity.saturating_mul(2))
         {
+            self.overflow();
+        }
+    }
+
+    /// Queues a pause of `reply_pause` (see [`Outgoing::Pause`]).
+    fn pause(&self) {
+        if let Err(PushError::Full) = self.queue.push_within(Outgoing::Pause, self.capacity.saturating_mul(2)) {
             self.overflow();
         }
     }
@@ -941,7 +954,10 @@ impl Connection {
                         result = result.and_then(|()| flush(writer, &mut text));
                         message.write_to(&mut text);
                         result = result.and_then(|()| flush(writer, &mut text));
-                        if message == Message::Ok && result.is_ok() {
+                    }
+                    Outgoing::Pause => {
+                        result = result.and_then(|()| flush(writer, &mut text));
+                        if result.is_ok() {
                             std::thread::sleep(self.reply_pause);
                         }
                     }
@@ -1065,7 +1081,7 @@ mod tests {
                 None => assert_eq!(taken, text.len()),
                 Some(Outgoing::Frame(f, t)) => assert_eq!((taken, f, t), (0, frame, at)),
                 Some(Outgoing::Rest(rest)) => assert_eq!(format!("{}{rest}", &text[..taken]), text),
-                Some(Outgoing::Reply(_)) => panic!("a frame came back as a reply"),
+                Some(Outgoing::Reply(_) | Outgoing::Pause) => panic!("a frame came back as a reply"),
             }
         }
         // Replies are never written directly: they keep their place behind queued frames.

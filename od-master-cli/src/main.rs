@@ -124,6 +124,9 @@ enum Cmd {
         /// Boot the nodes one after another instead of at the same time.
         #[arg(long)]
         sequential: bool,
+        /// The LSS step timeout (ms) for the nodes the description marks `lss = true`.
+        #[arg(long, value_name = "MS", default_value_t = 20)]
+        lss_step_timeout: u64,
     },
     /// Commissioning with LSS (CiA 305): scan, set-id, set-bitrate, store, inquire,
     /// unconfigure-all, assign.
@@ -379,8 +382,12 @@ async fn run(args: Args) -> Result<(), Fail> {
             };
             bus.nmt(cmd, target).await.map_err(fail)?;
         }
-        Cmd::Boot { no_start, sequential, .. } => {
-            let options = od_master::BootOptions { start: !no_start, concurrent: !sequential };
+        Cmd::Boot { no_start, sequential, lss_step_timeout, .. } => {
+            let options = od_master::BootOptions {
+                start: !no_start,
+                concurrent: !sequential,
+                lss_step_timeout: Duration::from_millis(lss_step_timeout.max(1)),
+            };
             let network = network.unwrap_or_default();
             if !cli::boot::run(&bus, &network, &options, args.json).await {
                 return Err(Fail(1, "the network did not boot: see the nodes above".to_owned()));

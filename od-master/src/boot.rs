@@ -56,6 +56,11 @@ pub struct BootNode {
     /// Its serial number, when the description gives one (`serial`, the DCF's
     /// `LSS_SerialNumber`): the device LSS gives this node-ID to ([`crate::lss`]).
     pub serial: Option<u32>,
+    /// Whether [`boot`] gives it its node-ID over LSS first (the description's `lss = true`;
+    /// needs `serial`): see [`crate::lss::Lss::commission`].
+    pub lss: bool,
+    /// Whether that node-ID is stored in the device (`lss_store`, default true).
+    pub lss_store: bool,
     /// How the supervisor watches it after boot ([`crate::supervisor`]); [`boot`] does not
     /// look at it.
     pub supervision: NodeSupervision,
@@ -141,7 +146,7 @@ impl Network {
         if outcome.has_errors() {
             return Err(LoadError::Invalid(od_codegen::network::render_all(&outcome.diagnostics)));
         }
-        let mut net = Network { supervision: outcome.supervision.into(), ..Network::default() };
+        let mut net = Network { supervision: outcome.supervision, ..Network::default() };
         let mut problems = Vec::new();
         for dcf in outcome.dcfs {
             match concise::plan(&dcf.model, dcf.node_id) {
@@ -153,7 +158,9 @@ impl Network {
                         device: dcf.device,
                         plan,
                         serial,
-                        supervision: dcf.supervision.into(),
+                        supervision: dcf.supervision,
+                        lss: dcf.lss,
+                        lss_store: dcf.lss_store,
                     })
                 }
                 Err(e) => problems.extend(e.iter().map(|p| format!("node `{}` ({}): {p}", dcf.name, dcf.device))),
@@ -201,7 +208,16 @@ impl Network {
             LoadError::Invalid(e.iter().map(|p| format!("{shown}: {p}")).collect::<Vec<_>>().join("\n"))
         })?;
         let serial = commissioning.and_then(|c| c.lss_serial_number);
-        Ok(BootNode { name, node_id, device: shown, plan, serial, supervision: NodeSupervision::default() })
+        Ok(BootNode {
+            name,
+            node_id,
+            device: shown,
+            plan,
+            serial,
+            lss: false,
+            lss_store: true,
+            supervision: NodeSupervision::default(),
+        })
     }
 
     /// Takes the supervision settings of a master's DCF: 1F80h (NMT start-up) for the network,
@@ -256,11 +272,14 @@ pub struct BootOptions {
     pub start: bool,
     /// Boot the nodes at the same time (default true), or one after another.
     pub concurrent: bool,
+    /// The LSS step timeout for the nodes marked `lss = true` (default
+    /// [`crate::lss::DEFAULT_TIMEOUT`], 20 ms; raise it on a loaded host or a slow gateway).
+    pub lss_step_timeout: Duration,
 }
 
 impl Default for BootOptions {
     fn default() -> Self {
-        Self { start: true, concurrent: true }
+        Self { start: true, concurrent: true, lss_step_timeout: Duration::from_micros(crate::lss::DEFAULT_TIMEOUT) }
     }
 }
 
@@ -273,6 +292,8 @@ pub enum Stage {
     Configure,
     /// The NMT commands (pre-operational before configuring, start after).
     Nmt,
+    /// Giving the node its node-ID over LSS, before the rest (`lss = true`).
+    Lss,
 }
 
 impl std::fmt::Display for Stage {
@@ -281,6 +302,7 @@ impl std::fmt::Display for Stage {
             Stage::Identity => "checking the identity",
             Stage::Configure => "writing the configuration",
             Stage::Nmt => "NMT",
+            Stage::Lss => "LSS",
         })
     }
 }
@@ -325,6 +347,35 @@ pub enum BootError {
         /// How long boot waited.
         waited_ms: u64,
     },
+    /// The node is marked for LSS (`lss = true`) and its device could not be given its
+    /// node-ID: the error names the LSS step and the identity (a timeout of switch state
+    /// selective: no device of that identity answers).
+    #[error("node {node} ({name}): giving the device of serial number {serial} its node-ID over LSS failed: {error}")]
+    Lss {
+        /// The node id.
+        node: u8,
+        /// The node's name.
+        name: String,
+        /// The serial number the description gives.
+        serial: u32,
+        /// The LSS step's error (shared by every marked node when the scan itself failed).
+        error: std::sync::Arc<Error>,
+    },
+    /// The node's device was given its node-ID over LSS but sent no boot-up with it.
+    #[error(
+        "node {node} ({name}): the device of serial number {serial} was given node-ID {node} over LSS \
+         but sent no boot-up within {waited_ms} ms"
+    )]
+    NoBootUp {
+        /// The node id.
+        node: u8,
+        /// The node's name.
+        name: String,
+        /// The serial number.
+        serial: u32,
+        /// How long boot waited.
+        waited_ms: u64,
+    },
     /// An SDO transfer or NMT command failed (the error names the node and the object).
     #[error("{name}, {stage}: {error}")]
     Bus {
@@ -352,7 +403,8 @@ impl BootError {
             BootError::NoHeartbeat { .. } => Some('K'),
             BootError::Bus { stage: Stage::Identity, .. } => Some('B'),
             BootError::Bus { stage: Stage::Configure, .. } => Some('J'),
-            BootError::Bus { stage: Stage::Nmt, .. } => None,
+            BootError::Bus { stage: Stage::Nmt | Stage::Lss, .. } => None,
+            BootError::Lss { .. } | BootError::NoBootUp { .. } => None,
         }
     }
 
@@ -361,6 +413,7 @@ impl BootError {
         match self {
             BootError::Identity { index, sub, .. } => Some((*index, *sub)),
             BootError::NoHeartbeat { .. } => Some((0x1017, 0)),
+            BootError::Lss { .. } | BootError::NoBootUp { .. } => None,
             BootError::Bus { error: Error::Sdo { error, .. }, .. } => Some((error.index, error.sub)),
             BootError::Bus { error: Error::Length { index, sub, .. }, .. } => Some((*index, *sub)),
             BootError::Bus { .. } => None,
@@ -388,9 +441,158 @@ pub struct NodeReport {
 }
 
 /// Boots `network` on `bus`: see the [module](self) for the steps. One report per node, in the
-/// network's order; an error of one node never stops another.
+/// network's order; an error of one node never stops another. [`boot_network`] says what the
+/// LSS step found too.
 pub async fn boot(bus: &Bus, network: &Network, options: &BootOptions) -> Vec<NodeReport> {
-    boot_nodes(bus, &network.nodes, options.concurrent, &|_| options.start, true).await
+    boot_network(bus, network, options).await.nodes
+}
+
+/// How long [`boot`] waits for the boot-up of a device LSS gave a node-ID to (it sends it as
+/// soon as it is back in waiting; the bound is for a slow bridge or a loaded host).
+pub const LSS_BOOT_UP: Duration = Duration::from_millis(1000);
+
+/// What [`boot_network`] did.
+#[derive(Debug, Default)]
+pub struct BootOutcome {
+    /// The LSS step, when a node is marked `lss = true`: the devices given a node-ID, those
+    /// already at theirs, and the devices without a node-ID the description does not name
+    /// (found, not touched). Its `failed` list is empty: those nodes' reports say why.
+    pub lss: Option<crate::lss::Commissioning>,
+    /// One report per node, in the network's order.
+    pub nodes: Vec<NodeReport>,
+}
+
+/// [`boot`], with what the LSS step did. The nodes the description marks for LSS (`lss =
+/// true`, with `serial`) first get their node-ID ([`crate::lss::Lss::commission`], at
+/// [`BootOptions::lss_step_timeout`]), and boot waits for the boot-up of each
+/// one given a new node-ID ([`LSS_BOOT_UP`] at most); a node whose device cannot be given its
+/// node-ID fails ([`BootError::Lss`], [`BootError::NoBootUp`]) and is not booted; the others
+/// boot as usual. Nodes not marked are not touched by the LSS step.
+pub async fn boot_network(bus: &Bus, network: &Network, options: &BootOptions) -> BootOutcome {
+    let (lss, nodes) =
+        boot_with_lss(bus, &network.nodes, options.concurrent, &|_| options.start, true, options.lss_step_timeout)
+            .await;
+    BootOutcome { lss, nodes }
+}
+
+/// [`commission`], then [`boot_nodes`] for the nodes it did not fail (one NMT start to all
+/// only if none failed); one report per node of `nodes`, in their order.
+pub(crate) async fn boot_with_lss(
+    bus: &Bus,
+    nodes: &[BootNode],
+    concurrent: bool,
+    start_it: &(dyn Fn(&BootNode) -> bool + Sync),
+    all_at_once: bool,
+    lss_step_timeout: Duration,
+) -> (Option<crate::lss::Commissioning>, Vec<NodeReport>) {
+    let (lss, mut failed) = commission(bus, nodes, lss_step_timeout).await;
+    let ready: Vec<BootNode> =
+        nodes.iter().enumerate().filter(|(i, _)| !failed.contains_key(i)).map(|(_, n)| n.clone()).collect();
+    let all_at_once = all_at_once && failed.is_empty();
+    let mut booted = boot_nodes(bus, &ready, concurrent, start_it, all_at_once).await.into_iter();
+    let reports = nodes
+        .iter()
+        .enumerate()
+        .filter_map(|(i, n)| match failed.remove(&i) {
+            Some(error) => Some(NodeReport {
+                name: n.name.clone(),
+                node_id: n.node_id,
+                written: 0,
+                planned: n.plan.writes.len(),
+                started: false,
+                started_at: None,
+                result: Err(error),
+            }),
+            None => booted.next(),
+        })
+        .collect();
+    (lss, reports)
+}
+
+/// The LSS step of a boot: the marked nodes' devices given their node-ID, and the boot-ups of
+/// those given a new one waited for. The nodes that failed, by their place in `nodes`.
+async fn commission(
+    bus: &Bus,
+    nodes: &[BootNode],
+    step_timeout: Duration,
+) -> (Option<crate::lss::Commissioning>, BTreeMap<usize, BootError>) {
+    use crate::lss::{Identity, Lss, LssNode};
+    let mut failed = BTreeMap::new();
+    let marked: Vec<(usize, &BootNode, LssNode)> = nodes
+        .iter()
+        .enumerate()
+        .filter(|(_, n)| n.lss)
+        .filter_map(|(i, n)| {
+            let id = &n.plan.identity;
+            let serial = n.serial?;
+            let identity = Identity { vendor: id.vendor_id, product: id.product_code, revision: id.revision, serial };
+            Some((i, n, LssNode { identity, node_id: n.node_id, store: n.lss_store }))
+        })
+        .collect();
+    if marked.is_empty() {
+        return (None, failed);
+    }
+    let plan: Vec<LssNode> = marked.iter().map(|m| m.2).collect();
+    // Subscribed before the first request: no boot-up is missed.
+    let mut frames = bus.frames();
+    let mut session = Lss::new(bus);
+    session.set_timeout(step_timeout);
+    let mut commissioning = match session.commission(&plan).await {
+        Ok(c) => c,
+        Err(error) => {
+            // The scan itself failed: no marked node can be booted; each says why.
+            let error = std::sync::Arc::new(error);
+            for (i, node, p) in &marked {
+                let error = error.clone();
+                failed.insert(
+                    *i,
+                    BootError::Lss { node: node.node_id, name: node.name.clone(), serial: p.identity.serial, error },
+                );
+            }
+            return (None, failed);
+        }
+    };
+    for (p, error) in std::mem::take(&mut commissioning.failed) {
+        if let Some((i, node, _)) = marked.iter().find(|m| m.2 == p) {
+            let error = std::sync::Arc::new(error);
+            failed.insert(
+                *i,
+                BootError::Lss { node: node.node_id, name: node.name.clone(), serial: p.identity.serial, error },
+            );
+        }
+    }
+    // Each device given a node-ID sends its boot-up (at once, or after its reset).
+    let mut waiting: BTreeMap<u8, usize> = commissioning
+        .assigned
+        .iter()
+        .filter_map(|a| marked.iter().find(|m| m.2.identity == a.0).map(|m| (a.1, m.0)))
+        .collect();
+    let started = Instant::now();
+    let deadline = started + LSS_BOOT_UP;
+    while !waiting.is_empty() {
+        match tokio::time::timeout_at(deadline, frames.recv()).await {
+            Ok(Ok(f)) => {
+                if (0x701..=0x77F).contains(&f.id()) && f.data() == [0] {
+                    waiting.remove(&((f.id() - 0x700) as u8));
+                }
+            }
+            Ok(Err(broadcast::error::RecvError::Lagged(_))) => {}
+            Ok(Err(broadcast::error::RecvError::Closed)) | Err(_) => break,
+        }
+    }
+    for (node_id, i) in waiting {
+        let node = &nodes[i];
+        failed.insert(
+            i,
+            BootError::NoBootUp {
+                node: node_id,
+                name: node.name.clone(),
+                serial: node.serial.unwrap_or(0),
+                waited_ms: u64::try_from(LSS_BOOT_UP.as_millis()).unwrap_or(u64::MAX),
+            },
+        );
+    }
+    (Some(commissioning), failed)
 }
 
 /// Boots `nodes` as [`boot`] does, starting those `start_it` says; with `all_at_once`, one NMT

@@ -45,9 +45,9 @@ pub struct Lss {
 pub const FASTSCAN_ATTEMPTS: u32 = 3;
 
 /// How long the steps of a session wait at least until its first answer: a bus just opened
-/// over `drive-sim hub` delivers its first answers 30 to 60 ms late (measured: an SDO read or
-/// an LSS inquiry right after the handshake needs a timeout over 45 ms, the same one 30 ms
-/// later answers in under 1 ms).
+/// over `drive-sim hub` delivers its first frames up to 50 ms late (the hub's pause after its
+/// reply to `< rawmode >`, which python-can needs to read that reply alone; measured: the
+/// first answer 50 ms after the handshake, the next ones in under 1 ms).
 pub const FIRST_ANSWER: Duration = Duration::from_millis(100);
 
 /// What [`Lss::assign`] did.
@@ -351,68 +351,138 @@ impl Lss {
     }
 
     /// Gives each device of `plan` (its identity: the EDS's vendor, product and revision
-    /// and the description's serial number) its node-ID, stored.
-    ///
-    /// First by fastscan: each device without a node-ID that the scan finds is the only one in
-    /// configuration, so a device of the plan gets its node-ID there and then (no switch
-    /// selective); a device the plan does not name is listed in
-    /// [`Assignment::unknown`] and left as it was. The scan matches vendor, product and
-    /// revision instead of scanning them when every device of the plan has the same ones.
-    /// Then the devices of the plan the scan did not give a node-ID (those that have one
-    /// already) by switch state selective; one that does not answer is listed as missing.
+    /// and the description's serial number) its node-ID, stored, as
+    /// [`commission`](Self::commission) does (each addressed by its identity), except that a
+    /// device already at its node-ID is configured and stored again too. A device of the plan
+    /// that does not answer is listed in [`Assignment::missing`]; devices without a node-ID
+    /// the plan does not name are found by fastscan afterwards and listed in
+    /// [`Assignment::unknown`], not touched. Another failure (two devices of one identity, a
+    /// refused store) ends it with that error.
     pub async fn assign(&mut self, plan: &[(Identity, u8)]) -> Result<Assignment, Error> {
-        let mut report = Assignment::default();
-        let same = |f: fn(&Identity) -> u32| {
-            let first = plan.first().map(|p| f(&p.0));
-            first.filter(|v| plan.iter().all(|p| f(&p.0) == *v))
-        };
-        let known = [same(|i| i.vendor), same(|i| i.product), same(|i| i.revision), None];
-        // An unknown device found waits in configuration: the devices found after it get their
-        // node-ID by switch state selective, after the scan.
-        let mut parked = false;
-        let scanned = async {
-            for _ in 0..127 {
-                let Some(id) = self.fastscan(known).await? else { break };
-                match plan.iter().find(|p| p.0 == id) {
-                    Some(&(_, node)) if !parked => {
-                        self.configure_node_id(node).await?;
-                        self.store().await?;
-                        // Back to waiting: it starts with its node-ID.
-                        self.switch_global(Mode::Waiting).await?;
-                        report.assigned.push((id, node));
-                    }
-                    Some(_) => {}
-                    None => {
-                        report.unknown.push(id);
-                        parked = true;
-                    }
-                }
-            }
-            Ok::<_, Error>(())
+        let nodes: Vec<LssNode> =
+            plan.iter().map(|&(identity, node_id)| LssNode { identity, node_id, store: true }).collect();
+        let mut c = self.commission_with(&nodes, true).await?;
+        if let Some(e) = c.scan_error.take() {
+            return Err(e);
         }
-        .await;
-        let back = self.switch_global(Mode::Waiting).await;
-        scanned?;
-        back?;
-        for &(id, node) in plan {
-            if report.assigned.iter().any(|a| a.0 == id) {
-                continue;
-            }
-            match self.set_node_id(id, node, true).await {
-                Ok(()) => report.assigned.push((id, node)),
-                Err(Error::Lss { error, .. })
-                    if matches!(error.step, Step::SwitchSelective(_))
-                        && matches!(error.kind, ErrorKind::Timeout(_)) =>
-                {
-                    report.missing.push((id, node));
-                }
-                Err(e) => return Err(e),
+        let mut report = Assignment { unknown: c.unknown, ..Assignment::default() };
+        report.assigned = c.assigned.iter().map(|a| (a.0, a.1)).chain(c.in_place).collect();
+        for (p, e) in c.failed {
+            if no_such_device(&e) {
+                report.missing.push((p.identity, p.node_id));
+            } else {
+                return Err(e);
             }
         }
         // In the order of the plan.
         report.assigned.sort_by_key(|a| plan.iter().position(|p| p.0 == a.0));
         Ok(report)
     }
+
+    /// What a network's boot runs first ([`crate::boot`], for the nodes its description marks
+    /// `lss = true`): each device of `plan` gets its node-ID, where it needs one.
+    ///
+    /// Each device is addressed by its whole identity (switch state selective: one step, any
+    /// device in waiting answers, with or without a node-ID; no fastscan is needed for a device
+    /// whose serial number is known) and asked for its node-ID. At its node-ID already, nothing
+    /// more is sent. Otherwise it is given its own (stored when its entry says): a device that
+    /// had none starts with it as soon as it is back in waiting; one that had another one is
+    /// reset (NMT reset communication to that node-ID), so that it starts with it now. Either
+    /// sends its boot-up next; waiting for it is the caller's. A device that does not answer,
+    /// or whose configuration fails, is in [`Commissioning::failed`] with the error naming the
+    /// step and the identity; the others go on.
+    ///
+    /// Then a fastscan (full: they can be any device) lists the devices still without a
+    /// node-ID in [`Commissioning::unknown`], not touched (back in waiting at the end). With
+    /// none there, that is one step that nobody answers.
+    pub async fn commission(&mut self, plan: &[LssNode]) -> Result<Commissioning, Error> {
+        self.commission_with(plan, false).await
+    }
+
+    /// [`commission`](Self::commission); with `again`, a device at its node-ID already is
+    /// configured (and stored, as its entry says) again.
+    async fn commission_with(&mut self, plan: &[LssNode], again: bool) -> Result<Commissioning, Error> {
+        let mut report = Commissioning::default();
+        for p in plan {
+            match self.switch_selective(p.identity).await {
+                Ok(()) => {}
+                Err(e @ Error::Lss { .. }) => {
+                    // Two devices of one identity are both in configuration now.
+                    self.switch_global(Mode::Waiting).await?;
+                    report.failed.push((*p, e));
+                    continue;
+                }
+                Err(e) => return Err(e),
+            }
+            let r = async {
+                let had = self.inquire_node_id().await?;
+                if again || had != Some(p.node_id) {
+                    self.configure_node_id(p.node_id).await?;
+                    if p.store {
+                        self.store().await?;
+                    }
+                }
+                Ok::<_, Error>(had)
+            }
+            .await;
+            self.switch_global(Mode::Waiting).await?;
+            match r {
+                Ok(Some(had)) if had == p.node_id => report.in_place.push((p.identity, p.node_id)),
+                Ok(had) => {
+                    if let Some(old) = had.and_then(od_runtime::NodeId::new) {
+                        // A new node-ID takes effect at the device's next reset.
+                        self.bus.nmt(NmtCommand::ResetCommunication, Target::Node(old)).await?;
+                    }
+                    report.assigned.push((p.identity, p.node_id, had));
+                }
+                Err(e @ Error::Lss { .. }) => report.failed.push((*p, e)),
+                Err(e) => return Err(e),
+            }
+        }
+        // The assignments stand whatever this scan meets (a late answer on a loaded host).
+        match self.scan([None; 4]).await {
+            Ok(found) => report.unknown = found,
+            Err(e @ Error::Lss { .. }) => report.scan_error = Some(e),
+            Err(e) => return Err(e),
+        }
+        Ok(report)
+    }
+}
+
+/// Whether `e` says that no device answered a switch state selective.
+fn no_such_device(e: &Error) -> bool {
+    matches!(e, Error::Lss { error, .. }
+        if matches!(error.step, Step::SwitchSelective(_)) && matches!(error.kind, ErrorKind::Timeout(_)))
+}
+
+/// A device [`Lss::commission`] gives a node-ID to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LssNode {
+    /// Its identity: the device description's vendor-ID, product code and revision number, and
+    /// its serial number.
+    pub identity: Identity,
+    /// The node-ID it is to have.
+    pub node_id: u8,
+    /// Whether the node-ID is stored in the device (store configuration).
+    pub store: bool,
+}
+
+/// What [`Lss::commission`] did.
+#[derive(Debug, Default)]
+pub struct Commissioning {
+    /// Devices given their node-ID: identity, node-ID, and the node-ID they had (`None`:
+    /// none). Each of them sends a boot-up with its new node-ID.
+    pub assigned: Vec<(Identity, u8, Option<u8>)>,
+    /// Devices of the plan already at their node-ID (nothing configured).
+    pub in_place: Vec<(Identity, u8)>,
+    /// Devices without a node-ID that the plan does not name (left as they were).
+    pub unknown: Vec<Identity>,
+    /// Devices of the plan that could not be given their node-ID, with the error (a timeout of
+    /// the switch state selective: no device has that identity on the bus).
+    pub failed: Vec<(LssNode, Error)>,
+    /// The fastscan for the devices the plan does not name failed (devices without a node-ID
+    /// may be missing from `unknown`); the assignments above stand.
+    pub scan_error: Option<Error>,
 }
 
 /// The LSS plan of a network: for each node whose description gives a serial number, the

@@ -238,6 +238,22 @@ pub enum SupervisorEvent {
         /// Objects read back.
         objects: usize,
     },
+    /// The node's device was given its node-ID over LSS (the description's `lss = true`)
+    /// before its boot.
+    LssAssigned {
+        /// Node id.
+        node: u8,
+        /// Its name.
+        name: String,
+        /// The device's serial number.
+        serial: u32,
+    },
+    /// A device without a node-ID that the description does not name was found by the LSS
+    /// step's fastscan: left as it is.
+    LssUnknown {
+        /// Its identity.
+        identity: crate::lss::Identity,
+    },
     /// The bus's own state changed.
     Bus(BusState),
 }
@@ -284,6 +300,12 @@ impl std::fmt::Display for SupervisorEvent {
             SupervisorEvent::Verified { node, name, objects } => {
                 write!(f, "{name} (node {node}): configuration read back ({objects} objects), unchanged")
             }
+            SupervisorEvent::LssAssigned { node, name, serial } => {
+                write!(f, "{name} (node {node}): node-ID given over LSS to the device of serial number {serial}")
+            }
+            SupervisorEvent::LssUnknown { identity } => {
+                write!(f, "LSS: a device without a node-ID the description does not name ({identity}): left as it is")
+            }
             SupervisorEvent::Bus(state) => write!(f, "{state}"),
         }
     }
@@ -312,6 +334,7 @@ pub struct Supervisor {
     bus: Bus,
     network: Network,
     events: broadcast::Sender<SupervisorEvent>,
+    lss_step_timeout: Duration,
 }
 
 /// What the loop knows about one node.
@@ -333,6 +356,53 @@ struct NodeRun {
     /// boot-up lost, or a heartbeat that cannot get through), and how many such boots failed.
     boot_check_at: Option<Instant>,
     checks_failed: u32,
+    /// Marked `lss = true` and lost: the bus is searched for a device of its type without a
+    /// node-ID (its own after a power cycle that forgot it, or a replacement) at
+    /// `lss_probe_at`, until it is heard again.
+    lss_lost: bool,
+    lss_probe_at: Option<Instant>,
+}
+
+/// How often a lost node marked `lss = true` is looked for as a device without a node-ID.
+pub const LSS_PROBE: Duration = Duration::from_millis(500);
+
+/// What one LSS search for a lost node found.
+enum Probe {
+    /// No device of its type without a node-ID.
+    Nothing,
+    /// This one, now given the node's node-ID (its boot-up follows).
+    Assigned(crate::lss::Identity),
+    /// Several: which one replaces the node cannot be told; none is touched.
+    Ambiguous(Vec<crate::lss::Identity>),
+}
+
+/// The LSS search for a lost node `n` marked `lss = true`: a fastscan narrowed by its device
+/// description's vendor, product and revision (the serial number scanned: a replacement has
+/// another one); exactly one device found gets `n`'s node-ID (stored as `lss_store` says).
+async fn lss_probe(bus: Bus, n: BootNode, step_timeout: Duration) -> Result<Probe, crate::Error> {
+    use crate::lss::{ErrorKind, Lss, Step};
+    let id = &n.plan.identity;
+    let mut session = Lss::new(&bus);
+    session.set_timeout(step_timeout);
+    let found = match session.scan([Some(id.vendor_id), Some(id.product_code), Some(id.revision), None]).await {
+        Ok(found) => found,
+        // Devices without a node-ID, none of this type.
+        Err(crate::Error::Lss { error, .. })
+            if matches!(error.step, Step::FastscanConfirm { known: true, .. })
+                && matches!(error.kind, ErrorKind::Timeout(_)) =>
+        {
+            Vec::new()
+        }
+        Err(e) => return Err(e),
+    };
+    match found[..] {
+        [] => Ok(Probe::Nothing),
+        [one] => {
+            session.set_node_id(one, n.node_id, n.lss_store).await?;
+            Ok(Probe::Assigned(one))
+        }
+        _ => Ok(Probe::Ambiguous(found)),
+    }
 }
 
 /// How long after an NMT reset the node's boot-up is waited for before it is booted anyway.
@@ -342,13 +412,20 @@ const BOOT_CHECK: Duration = Duration::from_secs(1);
 enum Done {
     Boot { node: u8, generation: u64, report: NodeReport },
     Verify { node: u8, result: Result<usize, String> },
+    Lss { node: u8, result: Result<Probe, crate::Error> },
 }
 
 impl Supervisor {
     /// A supervisor of `network` on `bus`. Nothing happens until [`Supervisor::run`].
     pub fn new(bus: Bus, network: Network) -> Self {
         let (events, _) = broadcast::channel(1024);
-        Self { bus, network, events }
+        Self { bus, network, events, lss_step_timeout: Duration::from_micros(crate::lss::DEFAULT_TIMEOUT) }
+    }
+
+    /// Sets the LSS step timeout of the first boot's LSS step (the nodes marked `lss = true`;
+    /// default [`crate::lss::DEFAULT_TIMEOUT`]).
+    pub fn set_lss_step_timeout(&mut self, timeout: Duration) {
+        self.lss_step_timeout = timeout;
     }
 
     /// Subscribes to its events from now on (subscribe before [`Supervisor::run`] to see the
@@ -396,16 +473,28 @@ impl Supervisor {
         for n in &self.network.nodes {
             self.watch(n).await;
         }
+        // The nodes marked for LSS get their node-ID first; those that cannot are not booted.
         let all = to_boot.len() == self.network.nodes.len();
-        let reports = boot::boot_nodes(&self.bus, &to_boot, true, &|n| n.supervision.start, all).await;
+        let (lss, reports) =
+            boot::boot_with_lss(&self.bus, &to_boot, true, &|n| n.supervision.start, all, self.lss_step_timeout).await;
+        for (id, node, _) in lss.iter().flat_map(|c| &c.assigned) {
+            if let Some(n) = to_boot.iter().find(|n| n.node_id == *node) {
+                self.emit(SupervisorEvent::LssAssigned { node: *node, name: n.name.clone(), serial: id.serial });
+            }
+        }
+        for identity in lss.iter().flat_map(|c| &c.unknown) {
+            self.emit(SupervisorEvent::LssUnknown { identity: *identity });
+        }
         for r in &reports {
             self.settle_boot(r, &mut runs, &mut summary, None).await;
         }
         summary.boot = reports;
 
         tokio::pin!(shutdown);
+        // One LSS conversation at a time on the bus.
+        let mut lss_probing = false;
         loop {
-            let next_reset = runs.values().flat_map(|r| [r.reset_at, r.boot_check_at]).flatten().min();
+            let next_reset = runs.values().flat_map(|r| [r.reset_at, r.boot_check_at, r.lss_probe_at]).flatten().min();
             tokio::select! {
                 () = &mut shutdown => break,
                 event = bus_events.recv() => match event {
@@ -428,6 +517,10 @@ impl Supervisor {
                         self.settle_boot(&report, &mut runs, &mut summary, since).await;
                     }
                     Ok(Done::Verify { node, result }) => self.verified(node, result, &mut runs, &mut tasks),
+                    Ok(Done::Lss { node, result }) => {
+                        lss_probing = false;
+                        self.probed(node, result, &mut runs);
+                    }
                     // Aborted by a newer boot-up: its successor reports.
                     Err(_) => {}
                 },
@@ -435,6 +528,18 @@ impl Supervisor {
                     let now = Instant::now();
                     let due: Vec<u8> = runs.iter().filter(|(_, r)| r.reset_at.is_some_and(|t| t <= now)).map(|(id, _)| *id).collect();
                     let checks: Vec<u8> = runs.iter().filter(|(_, r)| r.boot_check_at.is_some_and(|t| t <= now)).map(|(id, _)| *id).collect();
+                    let probes: Vec<u8> = runs.iter().filter(|(_, r)| r.lss_probe_at.is_some_and(|t| t <= now)).map(|(id, _)| *id).collect();
+                    for node in probes {
+                        let (Some(i), Some(run)) = (self.position(node), runs.get_mut(&node)) else { continue };
+                        if lss_probing {
+                            run.lss_probe_at = Some(now + LSS_PROBE);
+                            continue;
+                        }
+                        run.lss_probe_at = None;
+                        lss_probing = true;
+                        let (bus, n, timeout) = (self.bus.clone(), self.network.nodes[i].clone(), self.lss_step_timeout);
+                        tasks.spawn(async move { Done::Lss { node, result: lss_probe(bus, n, timeout).await } });
+                    }
                     for node in checks {
                         let Some(i) = self.position(node) else { continue };
                         let n = &self.network.nodes[i];
@@ -463,6 +568,40 @@ impl Supervisor {
         summary
     }
 
+    /// What an LSS search for the lost node `node` found: a device given its node-ID (its
+    /// boot-up follows, and the reboot path configures it), nothing (searched again after
+    /// [`LSS_PROBE`] while it stays lost), several candidates or an error (reported; not
+    /// searched again until it is lost anew).
+    fn probed(&self, node: u8, result: Result<Probe, crate::Error>, runs: &mut BTreeMap<u8, NodeRun>) {
+        let (Some(i), Some(run)) = (self.position(node), runs.get_mut(&node)) else { return };
+        let n = &self.network.nodes[i];
+        match result {
+            Ok(Probe::Assigned(identity)) => {
+                run.lss_lost = false;
+                self.emit(SupervisorEvent::LssAssigned { node, name: n.name.clone(), serial: identity.serial });
+            }
+            Ok(Probe::Nothing) if run.lss_lost => run.lss_probe_at = Some(Instant::now() + LSS_PROBE),
+            Ok(Probe::Nothing) => {}
+            Ok(Probe::Ambiguous(found)) => {
+                run.lss_lost = false;
+                for identity in found {
+                    self.emit(SupervisorEvent::LssUnknown { identity });
+                }
+            }
+            Err(e) => {
+                run.lss_lost = false;
+                self.emit(SupervisorEvent::BootFailed {
+                    node,
+                    name: n.name.clone(),
+                    step: Stage::Lss,
+                    object: None,
+                    reason: None,
+                    message: format!("node {node} ({}): looking for its device over LSS: {e}", n.name),
+                });
+            }
+        }
+    }
+
     /// Handles one event of the bus; false when the bus has closed.
     fn bus_event(
         &self,
@@ -481,6 +620,8 @@ impl Supervisor {
                 run.boot_up_at = Some(Instant::now());
                 run.reset_at = None;
                 run.boot_check_at = None;
+                run.lss_lost = false;
+                run.lss_probe_at = None;
                 if let Some(old) = run.booting.take() {
                     old.abort();
                 }
@@ -493,6 +634,13 @@ impl Supervisor {
                 let n = &self.network.nodes[i];
                 summary.lost += 1;
                 self.emit(SupervisorEvent::Lost { node, name: n.name.clone() });
+                if n.lss
+                    && n.serial.is_some()
+                    && let Some(run) = runs.get_mut(&node)
+                {
+                    run.lss_lost = true;
+                    run.lss_probe_at = Some(Instant::now() + LSS_PROBE);
+                }
                 if let (Some(Action::ResetAfter(ms)), Some(run)) =
                     (policy::decide(&n.supervision, &self.network.supervision, Input::Lost), runs.get_mut(&node))
                 {
@@ -503,6 +651,8 @@ impl Supervisor {
                 let Some(i) = self.position(node) else { return true };
                 if let Some(run) = runs.get_mut(&node) {
                     run.reset_at = None;
+                    run.lss_lost = false;
+                    run.lss_probe_at = None;
                 }
                 self.emit(SupervisorEvent::Recovered { node, name: self.network.nodes[i].name.clone(), state });
             }
@@ -642,6 +792,7 @@ impl Supervisor {
                     boot::BootError::Identity { .. } => Stage::Identity,
                     boot::BootError::NoHeartbeat { .. } => Stage::Nmt,
                     boot::BootError::Bus { stage, .. } => *stage,
+                    boot::BootError::Lss { .. } | boot::BootError::NoBootUp { .. } => Stage::Lss,
                 };
                 self.emit(SupervisorEvent::BootFailed {
                     node: r.node_id,

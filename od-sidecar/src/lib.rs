@@ -127,6 +127,8 @@
 //! ```
 #![deny(missing_docs)]
 
+pub mod supervision;
+
 use std::collections::BTreeMap;
 use std::fmt;
 use std::path::Path;

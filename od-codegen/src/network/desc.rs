@@ -52,140 +52,10 @@ pub struct NetworkDesc {
     pub supervision: NetworkSupervision,
 }
 
-/// What the master does about a node whose heartbeat (or guarding) is lost, or, network-wide
-/// (`[network.supervision] on_mandatory_failure`), about a mandatory node that cannot be booted.
-/// Written `"report"`, `"reset_node"`, `"stop_all"`, `"reset_all"` in the file.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub enum FailureAction {
-    /// Report it; nothing is sent (the default).
-    #[default]
-    Report,
-    /// NMT reset node to that node alone: it boots again and is configured again.
-    ResetNode,
-    /// NMT stop to all nodes (CiA 302-2's 1F80h bit 6). Mandatory nodes only.
-    StopAll,
-    /// NMT reset node to all nodes (CiA 302-2's 1F80h bit 4). Mandatory nodes only.
-    ResetAll,
-}
-
-impl FailureAction {
-    /// Every action with its name in the file.
-    pub const ALL: [(FailureAction, &'static str); 4] = [
-        (FailureAction::Report, "report"),
-        (FailureAction::ResetNode, "reset_node"),
-        (FailureAction::StopAll, "stop_all"),
-        (FailureAction::ResetAll, "reset_all"),
-    ];
-
-    /// Its name in the file.
-    pub fn name(self) -> &'static str {
-        Self::ALL.iter().find(|(a, _)| *a == self).map_or("report", |(_, n)| n)
-    }
-
-    /// Whether it acts on every node, not only the failed one.
-    pub fn is_network_wide(self) -> bool {
-        matches!(self, FailureAction::StopAll | FailureAction::ResetAll)
-    }
-}
-
-/// How the master supervises one node after boot (`[nodes.NAME.supervision]`), as CiA 302-2's
-/// 1F81h (NMT slave assignment) says it. Every key is optional; the defaults are [`Default`]'s.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct NodeSupervision {
-    /// `mandatory` (default false; 1F81h bit 3): the network cannot run without it; its
-    /// failures may act on all nodes.
-    pub mandatory: bool,
-    /// `keep_alive` (default false; 1F81h bit 4): a node found operational when the master
-    /// starts is left as it is, not configured again.
-    pub keep_alive: bool,
-    /// `configure` (default true; 1F81h bit 2): the master checks its identity and writes its
-    /// configuration at boot and after each boot-up at run time.
-    pub configure: bool,
-    /// `start` (default true; 1F80h bit 3 clear): the master starts it (NMT start) once
-    /// configured; false leaves it pre-operational for the application.
-    pub start: bool,
-    /// `on_lost` (default `"report"`): what a lost heartbeat (or guarding) leads to.
-    pub on_lost: FailureAction,
-    /// `heartbeat_timeout_ms` (default: twice its 1017h producer time, plus 50 ms): the
-    /// master's heartbeat consumer time for it; 0 does not watch it.
-    pub heartbeat_timeout_ms: Option<u32>,
-    /// `guard_time_ms` (default 0: heartbeat instead): node guarding every this many ms.
-    pub guard_time_ms: u16,
-    /// `life_time_factor` (default 3): guarding requests without answer before it is lost.
-    pub life_time_factor: u8,
-    /// `reset_delay_ms` (default 500): how long a lost node has to come back before
-    /// `on_lost` acts; back within it, it is reported recovered and nothing is sent.
-    pub reset_delay_ms: u32,
-}
-
-impl Default for NodeSupervision {
-    fn default() -> Self {
-        Self {
-            mandatory: false,
-            keep_alive: false,
-            configure: true,
-            start: true,
-            on_lost: FailureAction::Report,
-            heartbeat_timeout_ms: None,
-            guard_time_ms: 0,
-            life_time_factor: 3,
-            reset_delay_ms: 500,
-        }
-    }
-}
-
-impl NodeSupervision {
-    /// From CiA 302-2's 1F81h value for the node (NMT slave assignment): bit 0 listed (not
-    /// listed: not configured nor started), bit 2 configure, bit 3 mandatory, bit 4 keep-alive,
-    /// bits 8-15 retry factor (life time factor), bits 16-31 guard time in ms. The keys not in
-    /// 1F81h keep their defaults.
-    pub fn from_1f81(value: u32) -> Self {
-        let listed = value & 1 != 0;
-        let guard = (value >> 16) as u16;
-        let retry = ((value >> 8) & 0xFF) as u8;
-        Self {
-            mandatory: listed && value & (1 << 3) != 0,
-            keep_alive: value & (1 << 4) != 0,
-            configure: listed && value & (1 << 2) != 0,
-            start: listed,
-            guard_time_ms: guard,
-            life_time_factor: if retry == 0 { 3 } else { retry },
-            ..Self::default()
-        }
-    }
-}
-
-/// How the master supervises the network as a whole (`[network.supervision]`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct NetworkSupervision {
-    /// `on_mandatory_failure` (default `"report"`): what a mandatory node that cannot be booted
-    /// (wrong identity, configuration refused, no heartbeat) does to the network.
-    pub on_mandatory_failure: FailureAction,
-    /// `boot_attempts` (default 3): how many times in a row a node's boot may fail before
-    /// `on_mandatory_failure` or `on_lost` stops acting on it (no endless reset loop).
-    pub boot_attempts: u32,
-}
-
-impl Default for NetworkSupervision {
-    fn default() -> Self {
-        Self { on_mandatory_failure: FailureAction::Report, boot_attempts: 3 }
-    }
-}
-
-impl NetworkSupervision {
-    /// From CiA 302-2's 1F80h value (NMT start-up): bit 6 stop all nodes, else bit 4 reset all
-    /// nodes, on an error of a mandatory node; neither: the node alone (reported).
-    pub fn from_1f80(value: u32) -> Self {
-        let on_mandatory_failure = if value & (1 << 6) != 0 {
-            FailureAction::StopAll
-        } else if value & (1 << 4) != 0 {
-            FailureAction::ResetAll
-        } else {
-            FailureAction::Report
-        };
-        Self { on_mandatory_failure, ..Self::default() }
-    }
-}
+// The supervision settings are written once, in `od_sidecar::supervision`, for this reader and
+// for od-master's supervisor (which does not link the generator); read here by hand like the
+// rest of the file, with the keys and ranges given there.
+pub use od_sidecar::supervision::{FailureAction, NetworkSupervision, NodeSupervision};
 
 /// One `[nodes.NAME]` table.
 #[derive(Clone, Debug, PartialEq)]
@@ -201,6 +71,12 @@ pub struct NodeDesc {
     /// `serial`: the device's serial number (1018h sub 4), which LSS finds it by (the DCF's
     /// `LSS_SerialNumber`).
     pub serial: Option<Located<i128>>,
+    /// `lss` (default false): the master gives the device of `serial` (and the EDS's identity)
+    /// this node-ID over LSS (CiA 305) before it boots the network.
+    pub lss: bool,
+    /// `lss_store` (default true): the node-ID given over LSS is stored in the device (it keeps
+    /// it across a power cycle); false: given again at every boot.
+    pub lss_store: bool,
     /// `[nodes.NAME.parameters]`, in file order.
     pub parameters: Vec<(Located<String>, Located<Scalar>)>,
     /// `tpdoN` / `rpdoN`, in file order.
@@ -397,13 +273,26 @@ impl<'a> Reader<'a> {
             node_id: None,
             baud_rate: None,
             serial: None,
+            lss: false,
+            lss_store: true,
             parameters: Vec::new(),
             pdos: Vec::new(),
             supervision: NodeSupervision::default(),
         };
-        const KNOWN: &[&str] =
-            &["device", "node_id", "baud_rate", "serial", "parameters", "supervision", "tpdoN", "rpdoN"];
+        const KNOWN: &[&str] = &[
+            "device",
+            "node_id",
+            "baud_rate",
+            "serial",
+            "lss",
+            "lss_store",
+            "parameters",
+            "supervision",
+            "tpdoN",
+            "rpdoN",
+        ];
         let mut present = (false, false);
+        let (mut lss_span, mut lss_store_span) = (None, None);
         for (k, v) in sorted(t) {
             let key = k.get_ref().as_ref();
             match key {
@@ -417,6 +306,14 @@ impl<'a> Reader<'a> {
                 }
                 "baud_rate" => node.baud_rate = self.integer(v, "`baud_rate`"),
                 "serial" => node.serial = self.integer(v, "`serial`"),
+                "lss" => {
+                    node.lss = self.boolean(v, "`lss`").unwrap_or(false);
+                    lss_span = Some(v.span());
+                }
+                "lss_store" => {
+                    node.lss_store = self.boolean(v, "`lss_store`").unwrap_or(true);
+                    lss_store_span = Some(v.span());
+                }
                 "supervision" => {
                     if let Some(t) = self.table(v, "`supervision`") {
                         node.supervision = self.node_supervision(t, &node_name);
@@ -453,6 +350,28 @@ impl<'a> Reader<'a> {
                 Diagnostic::error(codes::MISSING_KEY, format!("node `{node_name}` has no `node_id`"))
                     .at(self.snippet(name.span()))
                     .help("give it a node id from 1 to 127: `node_id = 2`"),
+            );
+        }
+        if let Some(span) = lss_span
+            && node.lss
+            && node.serial.is_none()
+        {
+            self.push(
+                Diagnostic::error(
+                    codes::MISSING_KEY,
+                    format!("node `{node_name}`: `lss = true` needs the device's serial number"),
+                )
+                .at(self.snippet(span))
+                .help("LSS finds the device by its identity: add `serial = N` (its 1018h sub 4)"),
+            );
+        }
+        if let Some(span) = lss_store_span
+            && !node.lss
+        {
+            self.push(
+                Diagnostic::error(codes::BAD_VALUE, format!("node `{node_name}`: `lss_store` without `lss = true`"))
+                    .at(self.snippet(span))
+                    .help("add `lss = true` (the node-ID given over LSS at boot), or remove `lss_store`"),
             );
         }
         Some(node)
@@ -504,7 +423,7 @@ impl<'a> Reader<'a> {
     /// `[network.supervision]`.
     fn network_supervision(&mut self, t: &DeTable<'_>) -> NetworkSupervision {
         let mut n = NetworkSupervision::default();
-        const KNOWN: &[&str] = &["on_mandatory_failure", "boot_attempts"];
+        const KNOWN: &[&str] = &NetworkSupervision::KEYS;
         for (k, v) in sorted(t) {
             match k.get_ref().as_ref() {
                 "on_mandatory_failure" => {
@@ -513,7 +432,7 @@ impl<'a> Reader<'a> {
                     }
                 }
                 "boot_attempts" => {
-                    if let Some(a) = self.bounded(v, "`boot_attempts`", 1..=100) {
+                    if let Some(a) = self.bounded(v, "`boot_attempts`", wide(NetworkSupervision::BOOT_ATTEMPTS)) {
                         n.boot_attempts = a as u32;
                     }
                 }
@@ -526,17 +445,7 @@ impl<'a> Reader<'a> {
     /// `[nodes.NAME.supervision]`.
     fn node_supervision(&mut self, t: &DeTable<'_>, node_name: &str) -> NodeSupervision {
         let mut n = NodeSupervision::default();
-        const KNOWN: &[&str] = &[
-            "mandatory",
-            "keep_alive",
-            "configure",
-            "start",
-            "on_lost",
-            "heartbeat_timeout_ms",
-            "guard_time_ms",
-            "life_time_factor",
-            "reset_delay_ms",
-        ];
+        const KNOWN: &[&str] = &NodeSupervision::KEYS;
         let mut on_lost_span = None;
         for (k, v) in sorted(t) {
             match k.get_ref().as_ref() {
@@ -552,21 +461,24 @@ impl<'a> Reader<'a> {
                 }
                 "heartbeat_timeout_ms" => {
                     n.heartbeat_timeout_ms = self
-                        .bounded(v, "`heartbeat_timeout_ms`", 0..=65_535)
+                        .bounded(v, "`heartbeat_timeout_ms`", wide(NodeSupervision::HEARTBEAT_TIMEOUT_MS))
                         .map(|x| x as u32)
                         .or(n.heartbeat_timeout_ms)
                 }
                 "guard_time_ms" => {
-                    n.guard_time_ms =
-                        self.bounded(v, "`guard_time_ms`", 0..=65_535).map_or(n.guard_time_ms, |x| x as u16)
+                    n.guard_time_ms = self
+                        .bounded(v, "`guard_time_ms`", wide(NodeSupervision::GUARD_TIME_MS))
+                        .map_or(n.guard_time_ms, |x| x as u16)
                 }
                 "life_time_factor" => {
-                    n.life_time_factor =
-                        self.bounded(v, "`life_time_factor`", 1..=255).map_or(n.life_time_factor, |x| x as u8)
+                    n.life_time_factor = self
+                        .bounded(v, "`life_time_factor`", wide(NodeSupervision::LIFE_TIME_FACTOR))
+                        .map_or(n.life_time_factor, |x| x as u8)
                 }
                 "reset_delay_ms" => {
-                    n.reset_delay_ms =
-                        self.bounded(v, "`reset_delay_ms`", 0..=600_000).map_or(n.reset_delay_ms, |x| x as u32)
+                    n.reset_delay_ms = self
+                        .bounded(v, "`reset_delay_ms`", wide(NodeSupervision::RESET_DELAY_MS))
+                        .map_or(n.reset_delay_ms, |x| x as u32)
                 }
                 _ => self.unknown_key(k, KNOWN, &format!("the supervision of node `{node_name}`")),
             }
@@ -710,6 +622,11 @@ pub fn pdo_name(dir: Direction, number: u32) -> String {
 
 fn quoted_list(items: &[&str]) -> String {
     items.iter().map(|s| format!("`{s}`")).collect::<Vec<_>>().join(", ")
+}
+
+/// A range of the supervision settings as the reader's integers.
+fn wide<T: Copy + Into<i128>>(r: std::ops::RangeInclusive<T>) -> std::ops::RangeInclusive<i128> {
+    (*r.start()).into()..=(*r.end()).into()
 }
 
 #[cfg(test)]

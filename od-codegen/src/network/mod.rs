@@ -84,6 +84,11 @@ pub struct NodeDcf {
     pub text: String,
     /// How the master supervises it after boot (`[nodes.NAME.supervision]`).
     pub supervision: desc::NodeSupervision,
+    /// `lss`: the master gives it its node-ID over LSS before booting (found by the DCF's
+    /// identity and `LSS_SerialNumber`).
+    pub lss: bool,
+    /// `lss_store`: that node-ID stored in the device.
+    pub lss_store: bool,
 }
 
 /// What [`build`] made: the DCFs (none if anything is wrong) and every diagnostic.
@@ -366,6 +371,8 @@ pub fn build(display: &str, dir: &Path, text: &str) -> Outcome {
             model,
             text,
             supervision: node.supervision,
+            lss: node.lss,
+            lss_store: node.lss_store,
         });
     }
     // File order: each diagnostic at its place in the network file (stable, so that those at

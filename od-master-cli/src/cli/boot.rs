@@ -62,8 +62,46 @@ pub fn print_plan(network: &Network, json: bool) {
 
 /// Boots the network and prints one line per node; true when every node booted.
 pub async fn run(bus: &od_master::Bus, network: &Network, options: &BootOptions, json: bool) -> bool {
-    let reports = boot::boot(bus, network, options).await;
+    let outcome = boot::boot_network(bus, network, options).await;
+    let reports = outcome.nodes;
     let mut out = std::io::stdout().lock();
+    // The LSS step first (nodes marked `lss = true`): who got a node-ID, unknown devices found.
+    if let Some(lss) = &outcome.lss {
+        for (id, node, had) in &lss.assigned {
+            let name = network.nodes.iter().find(|n| n.node_id == *node).map_or("", |n| n.name.as_str());
+            if json {
+                let _ = writeln!(
+                    out,
+                    "{}",
+                    json!({ "lss": "assigned", "node": node, "name": name, "serial": id.serial, "had": had })
+                );
+            } else {
+                let had = had.map_or("none".to_owned(), |h| h.to_string());
+                let _ = writeln!(out, "{name} (node {node}): node-ID given over LSS (serial {}, had {had})", id.serial);
+            }
+        }
+        if let Some(e) = &lss.scan_error {
+            if json {
+                let _ = writeln!(out, "{}", json!({ "lss": "scan_failed", "error": e.to_string() }));
+            } else {
+                eprintln!("od-master: LSS: the search for devices the description does not name failed: {e}");
+            }
+        }
+        for id in &lss.unknown {
+            if json {
+                let _ = writeln!(
+                    out,
+                    "{}",
+                    json!({ "lss": "unknown", "vendor": id.vendor, "product": id.product, "revision": id.revision, "serial": id.serial })
+                );
+            } else {
+                let _ = writeln!(
+                    out,
+                    "LSS: unknown device without a node-ID ({id}): not in the description, left as it is"
+                );
+            }
+        }
+    }
     for r in &reports {
         let device = network.nodes.iter().find(|n| n.node_id == r.node_id).map(|n| n.device.as_str()).unwrap_or("");
         if json {
@@ -91,6 +129,7 @@ fn report_json(r: &NodeReport, device: &str) -> serde_json::Value {
         Err(BootError::Identity { .. }) => Some(boot::Stage::Identity.to_string()),
         Err(BootError::Bus { stage, .. }) => Some(stage.to_string()),
         Err(BootError::NoHeartbeat { .. }) => Some(boot::Stage::Nmt.to_string()),
+        Err(BootError::Lss { .. } | BootError::NoBootUp { .. }) => Some(boot::Stage::Lss.to_string()),
         Ok(()) => None,
     };
     json!({

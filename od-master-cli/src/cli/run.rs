@@ -98,6 +98,13 @@ pub fn to_json(event: &SupervisorEvent) -> serde_json::Value {
             };
             json!({ "event": "bus", "state": name, "reason": reason })
         }
+        SupervisorEvent::LssAssigned { node, name, serial } => {
+            json!({ "event": "lss_assigned", "node": node, "name": name, "serial": serial })
+        }
+        SupervisorEvent::LssUnknown { identity } => json!({
+            "event": "lss_unknown", "vendor": identity.vendor, "product": identity.product,
+            "revision": identity.revision, "serial": identity.serial
+        }),
         other => json!({ "event": "other", "text": other.to_string() }),
     }
 }

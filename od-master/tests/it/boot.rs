@@ -60,7 +60,8 @@ async fn the_example_network_boots_on_the_three_drives() {
         [("x_axis", 2), ("y_axis", 3), ("z_axis", 4)]
     );
     for concurrent in [true, false] {
-        let reports = boot::boot(&n.bus, &network, &BootOptions { start: true, concurrent }).await;
+        let reports =
+            boot::boot(&n.bus, &network, &BootOptions { start: true, concurrent, ..BootOptions::default() }).await;
         for r in &reports {
             assert!(ok(&reports, &r.name), "{r:?}");
         }

@@ -601,3 +601,57 @@ async fn the_hub_restarted_link_down_and_up_and_no_node_left_unconfigured() {
     hub.stop();
     threads.into_iter().for_each(|t| t.join().unwrap());
 }
+
+/// A node marked `lss = true` is lost (its drive removed) and a replacement without a node-ID
+/// appears: the supervisor finds it by an LSS fastscan narrowed by the node's EDS identity
+/// (its serial number differs from the description's), gives it the node-ID, and configures it
+/// after its boot-up like a rebooted node.
+#[tokio::test(start_paused = true)]
+async fn a_replaced_drive_without_node_id_gets_the_lost_nodes_id_and_is_configured() {
+    use drive::drives::DeviceApps;
+    use drive::node::NodeConfig;
+    let dir = std::env::temp_dir().join(format!("od-master-supervisor-lss-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let text = std::fs::read_to_string(repo().join("networks/example.toml")).unwrap().replacen(
+        "node_id = 2\n",
+        "node_id = 2\nserial = 1001\nlss = true\n",
+        1,
+    );
+    let network = Network::from_description_text("example.toml", &repo().join("networks"), &text).unwrap();
+    let build = |kind: DeviceKind, id: u8, serial: u32| {
+        let config =
+            NodeConfig { node_id: Some(id), serial: Some(serial), state_dir: Some(dir.clone()), ..Default::default() };
+        kind.build(&config, &DeviceApps::new()).expect("a simulated drive")
+    };
+    let mut sim = Sim::new();
+    let (x, x_faults) = Faulty::new(build(DeviceKind::Drvi, 2, 1001));
+    sim.add(Box::new(x));
+    sim.add(node(DeviceKind::Drcs, 3));
+    sim.add(node(DeviceKind::Akd, 4));
+    let (bus, sim) = drive::node::spawn_with_master(sim, Config::default(), STEP);
+    let mut r = supervise(&bus, network);
+    for n in 2..=4 {
+        r.expect(Duration::from_secs(2), booted(n)).await;
+    }
+    // The DRVI of x_axis taken out (off for an hour), a new one without a node-ID put in.
+    x_faults.inject(Fault::PowerCycle { off: 3_600_000_000 });
+    r.expect(Duration::from_secs(1), |e| matches!(e, SupervisorEvent::Lost { node: 2, .. })).await;
+    let replacement = sim.lock().unwrap().add(build(DeviceKind::Drvi, 255, 5555));
+    let (assigned, _) = r.expect(Duration::from_secs(3), |e| matches!(e, SupervisorEvent::LssAssigned { .. })).await;
+    assert_eq!(assigned, SupervisorEvent::LssAssigned { node: 2, name: "x_axis".into(), serial: 5555 });
+    let (done, seen) =
+        r.expect(Duration::from_secs(2), |e| matches!(e, SupervisorEvent::Reconfigured { node: 2, .. })).await;
+    assert!(seen.contains(&SupervisorEvent::Rebooted { node: 2, name: "x_axis".into() }), "{seen:#?}");
+    let SupervisorEvent::Reconfigured { writes, .. } = done else { unreachable!() };
+    assert_eq!(writes, 29, "the description's configuration, as at the first boot");
+    pass(Duration::from_millis(300)).await;
+    {
+        let sim = sim.lock().unwrap();
+        assert_eq!(sim.node(replacement).active_node_id().map(|i| i.get()), Some(2));
+        assert_eq!(sim.node(replacement).nmt_state(), NmtState::Operational);
+    }
+    // Stored: it keeps node 2 across a power cycle.
+    assert!(std::fs::read_to_string(dir.join("drvi-sn5555.lss")).unwrap().starts_with("node_id = 2\n"));
+    r.stop().await;
+    let _ = std::fs::remove_dir_all(&dir);
+}

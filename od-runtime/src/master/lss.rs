@@ -7,9 +7,11 @@
 //! next. Each request ends in one [`Done`]: its [`Answer`] or an [`LssError`] that names the
 //! step (and the identity, where the step has one).
 //!
-//! Requests that may be answered by several devices (switch state selective, identify) wait
-//! for the whole step timeout and count the answers: two answers to one identity are
-//! [`ErrorKind::Duplicate`]. A fastscan counts the answers to its first step and to its last
+//! Requests that may be answered by several devices (identify) wait for the whole step
+//! timeout and count the answers. Switch state selective counts its answers after the first
+//! for the settle time, or as long again as the first answer took if that is longer (two
+//! devices of one identity answer the same frames at once): two answers to one identity are
+//! [`ErrorKind::Duplicate`]; no answer is a timeout. A fastscan counts the answers to its first step and to its last
 //! confirmation for the settle time after the first ([`LssMaster::set_settle`]: devices
 //! answer one request at the same time); with several devices every answered step does.
 //! Every other step ends at its answer.
@@ -272,6 +274,8 @@ struct Running {
     out_len: u8,
     /// When the current step times out (set when its frames are sent).
     deadline: Option<Micros>,
+    /// When the current step's frames were sent.
+    sent_at: Micros,
     /// The answer specifier the step waits for.
     expect: u8,
     /// Whether the step waits out its timeout counting answers.
@@ -352,7 +356,6 @@ impl LssMaster {
 
     /// Starts a request; its frames go out at the next [`LssMaster::poll`].
     pub fn start(&mut self, request: Request, now: Micros) -> Result<(), Busy> {
-        let _ = now;
         if self.running.is_some() {
             return Err(Busy);
         }
@@ -361,6 +364,7 @@ impl LssMaster {
             out: [[0; 8]; 4],
             out_len: 1,
             deadline: None,
+            sent_at: now,
             expect: 0,
             count: false,
             answers: 0,
@@ -456,6 +460,7 @@ impl LssMaster {
                 self.frames += 1;
             }
             r.deadline = Some(now.saturating_add(self.timeout));
+            r.sent_at = now;
             return None;
         }
         if r.out_len > 0 {
@@ -471,6 +476,7 @@ impl LssMaster {
                 return Some(Done { request, result: Ok(Answer::Done) });
             }
             r.deadline = Some(now.saturating_add(self.timeout));
+            r.sent_at = now;
             return None;
         }
         match r.deadline {
@@ -494,6 +500,11 @@ impl LssMaster {
         }
         r.answers = r.answers.saturating_add(1);
         if r.count {
+            if r.answers == 1 && matches!(r.request, Request::SwitchSelective(_)) {
+                // A second device of this identity answers the same frames: right behind.
+                let window = self.settle.max(now.saturating_sub(r.sent_at));
+                r.deadline = r.deadline.map(|d| d.min(now.saturating_add(window)));
+            }
             return None;
         }
         // Fastscan: the first step counts the devices without a node-ID, the last

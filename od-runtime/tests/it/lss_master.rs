@@ -283,3 +283,37 @@ fn a_device_that_stops_answering_mid_scan_is_a_timeout_naming_the_step() {
     assert!(e.to_string().contains("found so far: vendor-ID 00000ABCh"), "{e}");
     assert!(net.now < 40 * DEFAULT_TIMEOUT, "bounded: {} µs", net.now);
 }
+
+/// Switch state selective counts answers after its first one for the settle time, or as long
+/// again as the first answer took, not for the whole step timeout.
+#[test]
+fn switch_selective_ends_soon_after_its_answer_and_still_sees_a_duplicate() {
+    let id = Identity { vendor: 1, product: 2, revision: 3, serial: 4 };
+    let answer = frame("7E4 44 00 00 00 00 00 00 00");
+    // Answered after 300 µs: ends 2 ms (the settle time) later, not after 20 ms.
+    let mut m = LssMaster::new();
+    m.start(Request::SwitchSelective(id), 0).unwrap();
+    assert!(m.poll(0, &mut |_| {}).is_none());
+    assert_eq!(m.deadline(), Some(DEFAULT_TIMEOUT));
+    assert!(m.on_frame(&answer, 300).is_none());
+    assert_eq!(m.deadline(), Some(2_300));
+    assert_eq!(m.poll(2_300, &mut |_| {}).map(|d| d.result), Some(Ok(Answer::Done)));
+    // A second device right behind the first: a duplicate.
+    m.start(Request::SwitchSelective(id), 10_000).unwrap();
+    assert!(m.poll(10_000, &mut |_| {}).is_none());
+    assert!(m.on_frame(&answer, 10_300).is_none());
+    assert!(m.on_frame(&answer, 11_000).is_none());
+    let e = m.poll(12_300, &mut |_| {}).unwrap().result.unwrap_err();
+    assert_eq!((e.step, e.kind), (Step::SwitchSelective(id), ErrorKind::Duplicate(2)));
+    // A slow answer (8 ms): the window is as long again, within the step timeout.
+    m.start(Request::SwitchSelective(id), 50_000).unwrap();
+    assert!(m.poll(50_000, &mut |_| {}).is_none());
+    assert!(m.on_frame(&answer, 58_000).is_none());
+    assert_eq!(m.deadline(), Some(66_000));
+    // Answered after 15 ms: the step timeout (20 ms) still bounds it.
+    assert_eq!(m.poll(66_000, &mut |_| {}).map(|d| d.result), Some(Ok(Answer::Done)));
+    m.start(Request::SwitchSelective(id), 100_000).unwrap();
+    assert!(m.poll(100_000, &mut |_| {}).is_none());
+    assert!(m.on_frame(&answer, 115_000).is_none());
+    assert_eq!(m.deadline(), Some(100_000 + DEFAULT_TIMEOUT));
+}
