@@ -4,7 +4,6 @@
 mod axis;
 mod boot;
 mod client;
-mod client_ui;
 mod errors;
 mod events;
 mod faults;

@@ -1,5 +1,5 @@
-//! A dictionary declared inline (strict) compiles without warnings; its typed API, PDO layouts
-//! and EDS work.
+//! A dictionary declared inline (strict) compiles without warnings (the lint level below holds
+//! for this module); its typed API, PDO layouts and EDS work.
 #![deny(warnings)]
 
 use od_runtime::od::ObjectDictionary;
@@ -40,7 +40,7 @@ od_macros::object_dictionary! {
     tpdo 1: transmission = 1, event_timer = 100, map = [0x6000:1, 0x6000:2, 0x1001];
 }
 
-fn main() {
+pub fn run() {
     let mut od = demo::Dictionary::new(5);
     assert_eq!(od.sdo_server_parameter_cob_id_client_to_server(), 0x605);
     assert_eq!(od.tpdo_communication_parameter_1_cob_id(), 0x185);
