@@ -103,21 +103,19 @@ for crate in "${published[@]}"; do
 done
 cargo package --locked --allow-dirty "${published[@]}"
 
-# The end-to-end tests run the binaries `cargo test` built for the Rust tests that run them
-# (target/debug/odgen, target/debug/drive-sim): the same executables, not a second build.
+# `cargo test` builds the binaries with the features of the dev-dependencies too; this builds
+# every binary with its own dependencies' features alone, SocketCAN (Linux) and slcan included:
+# what a user gets from `cargo build`, and the programs the Python tests run (drive-sim, odgen,
+# od-master, network-boot; `cargo test` links only those its own integration tests use). One
+# build: a `cargo check` of the same here and this build before pytest paid for it twice.
+step "binaries (with SocketCAN and slcan) build with their own features"
+cargo build --workspace --bins --locked
 # Where cargo put them: $CARGO_TARGET_DIR when set (relative to the root, as cargo reads it).
 target=${CARGO_TARGET_DIR:-$root/target}
 case "$target" in /*) ;; *) target="$root/$target" ;; esac
-for bin in odgen drive-sim; do
-  [ -x "$target/debug/$bin" ] || { echo "cargo test did not build $target/debug/$bin" >&2; exit 1; }
+for bin in odgen drive-sim od-master network-boot; do
+  [ -x "$target/debug/$bin" ] || { echo "cargo build did not build $target/debug/$bin" >&2; exit 1; }
 done
-
-# `cargo test` builds the binaries with the features of the dev-dependencies too; this checks
-# that every binary compiles with its own dependencies' features alone, SocketCAN (Linux) and
-# slcan included (a check, not a second build: `cargo build --bins` after `cargo test` took
-# 46 s of CPU on a fresh clone).
-step "binaries (with SocketCAN and slcan) compile with their own features"
-cargo check --workspace --bins --locked
 
 # The host crates and programs build for Windows and macOS too (slcan adapters are reached
 # there through the serialport crate): a check, not a build, so no linker or SDK is needed, with
@@ -147,9 +145,6 @@ cargo test -p od-runtime --no-default-features --features embedded-can --locked
 # four at a time 74 s, six 51 s, eight 45 s, the longest file taking 45 s). A file that fails,
 # or collects no tests (pytest's exit code 5), fails the step.
 step "pytest (python-canopen against the simulated drives), six files at a time"
-# The programs the tests run (drive-sim, odgen, od-master, network-boot): `cargo test` links
-# only those its own integration tests use.
-cargo build --workspace --bins --locked
 export DRIVE_SIM="$target/debug/drive-sim"
 export ODGEN="$target/debug/odgen"
 logs=$(mktemp -d)
