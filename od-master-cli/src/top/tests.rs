@@ -296,7 +296,7 @@ async fn top_lists_the_nodes_of_a_network_description() {
     insta::assert_snapshot!("10_network_listed", r.screen());
 
     // Booted as `od-master boot` does, top watching meanwhile.
-    let options = od_master::BootOptions { start: true, concurrent: true };
+    let options = od_master::BootOptions { start: true, concurrent: true, ..od_master::BootOptions::default() };
     let (bus, net) = (r.bus.clone(), network.clone());
     let boot = tokio::spawn(async move { od_master::boot::boot(&bus, &net, &options).await });
     while !boot.is_finished() {
