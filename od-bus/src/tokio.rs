@@ -232,7 +232,11 @@ impl Bus {
         drop(link_tx);
         let controller = Controller::new();
         Self {
-            tx: BusSender { inner: Tx::Memory(Arc::clone(&member)), link: link.clone(), controller: controller.clone() },
+            tx: BusSender {
+                inner: Tx::Memory(Arc::clone(&member)),
+                link: link.clone(),
+                controller: controller.clone(),
+            },
             rx: BusReceiver { inner: Rx::Memory(member), link, controller },
         }
     }

@@ -195,8 +195,7 @@ fn answer_sync(
         }
         stats.polls += 1;
         if nodes.len() > 1 {
-            for k in start..out.len() {
-                let (from, frame) = out[k];
+            for &(from, frame) in &out[start..] {
                 hand_over(nodes, Some(from), &frame, now);
             }
         }

@@ -378,7 +378,8 @@ fn every_sync_of_one_read_gets_its_synchronous_tpdo() {
         let end = run_group(&mut group, &mut bus, &MonotonicClock::new(), &stop);
         assert!(matches!(end, Err(TransportError::Closed)), "{end:?}");
         let sent = sent.lock().unwrap();
-        let ids: Vec<u32> = sent.iter().map(|f| f.id()).filter(|id| *id != 0x702 && *id != 0x182 && *id != 0x282).collect();
+        let ids: Vec<u32> =
+            sent.iter().map(|f| f.id()).filter(|id| *id != 0x702 && *id != 0x182 && *id != 0x282).collect();
         assert_eq!(
             ids,
             [0x701, 0x581, 0x181, 0x181, 0x181, 0x181, 0x581, 0x181, 0x581, 0x181, 0x181],

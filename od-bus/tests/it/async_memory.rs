@@ -146,7 +146,13 @@ async fn controller_state_changes_reach_every_listener_in_order() {
     let (tx, rx) = bus.split();
     let mut on_tx = tx.controller().subscribe();
     let mut on_rx = rx.controller().subscribe();
-    let changes = [ControllerState::ErrorWarning, ControllerState::ErrorPassive, ControllerState::BusOff, ControllerState::Restarted, ControllerState::ErrorActive];
+    let changes = [
+        ControllerState::ErrorWarning,
+        ControllerState::ErrorPassive,
+        ControllerState::BusOff,
+        ControllerState::Restarted,
+        ControllerState::ErrorActive,
+    ];
     for state in changes {
         rx.controller().report(state);
     }

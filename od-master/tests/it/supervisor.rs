@@ -608,7 +608,20 @@ async fn controller_states_are_reported_and_after_bus_off_every_node_is_read_bac
         seen.extend(before);
         match e {
             SupervisorEvent::Verified { node, objects, .. } => {
-                assert_eq!(objects, network.nodes.iter().find(|n| n.node_id == node).unwrap().plan.writes.iter().map(|w| (w.index, w.sub)).collect::<std::collections::BTreeSet<_>>().len());
+                assert_eq!(
+                    objects,
+                    network
+                        .nodes
+                        .iter()
+                        .find(|n| n.node_id == node)
+                        .unwrap()
+                        .plan
+                        .writes
+                        .iter()
+                        .map(|w| (w.index, w.sub))
+                        .collect::<std::collections::BTreeSet<_>>()
+                        .len()
+                );
                 verified.insert(node);
             }
             SupervisorEvent::Reconfigured { node, .. } => {
