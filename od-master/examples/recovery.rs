@@ -152,6 +152,9 @@ async fn soak(bus: Bus, injector: Injector, seconds: u64, min_s: f64, max_s: f64
     let end = Instant::now() + Duration::from_secs(seconds);
     let (mut cycles, mut reconfigured, mut wrong, mut missed, mut lagged) = (0u64, 0u64, 0u64, 0u64, 0u64);
     let mut times = Vec::new();
+    // SYNCs minus TPDO 2 in one window, for one drive: the least and the most seen (the count
+    // above forgives 2 a window, one at each edge; this shows what the edges really took).
+    let (mut least, mut most) = (i64::MAX, i64::MIN);
     while Instant::now() < end {
         let wait = min_s + (max_s - min_s) * (rng.next() % 1000) as f64 / 1000.0;
         tokio::time::sleep(Duration::from_secs_f64(wait)).await;
@@ -179,6 +182,8 @@ async fn soak(bus: Bus, injector: Injector, seconds: u64, min_s: f64, max_s: f64
             let got = tpdo2.get(&(0x280 + u32::from(other.node_id))).copied().unwrap_or(0);
             // One at each edge of the window may fall outside it.
             missed += sync_count.saturating_sub(got + 2);
+            let short = sync_count as i64 - got as i64;
+            (least, most) = (least.min(short), most.max(short));
         }
         if let Err(e) = verify(&bus, victim).await {
             eprintln!("wrong configuration of {}: {e}", victim.name);
@@ -189,6 +194,9 @@ async fn soak(bus: Bus, injector: Injector, seconds: u64, min_s: f64, max_s: f64
         "soak {seconds} s: {cycles} power cycles, {cycles} reboots seen, {reconfigured} reconfigured, \
          {wrong} wrong configurations, {missed} TPDO 2 missed on the other drives while one rebooted ({lagged} frames not seen in those windows: reader lagged)"
     );
+    if least <= most {
+        println!("SYNCs minus TPDO 2 of one drive not rebooted, per window: from {least} to {most}");
+    }
     if !times.is_empty() {
         stats("all drives: boot-up -> heartbeat says Operational", times);
     }
