@@ -136,8 +136,41 @@ impl Rng {
     }
 }
 
-async fn soak(bus: Bus, injector: Injector, seconds: u64, min_s: f64, max_s: f64) {
+/// Every SYNC and TPDO 2 in the hub's order, from a connection of its own: for each drive, SYNCs
+/// minus its TPDO 2 (a SYNC not answered stays counted), except while the drive is `down` (being
+/// power-cycled: neither its TPDO 2 nor the SYNCs count for it then).
+struct Balance {
+    per_node: std::sync::Mutex<BTreeMap<u8, i64>>,
+    down: std::sync::Mutex<Option<u8>>,
+}
+
+async fn count_in_hub_order(addr: String, nodes: Vec<u8>, balance: std::sync::Arc<Balance>) -> u64 {
+    let mut link = od_bus::tokio::Bus::open(&addr).await.expect("a listening connection to the hub");
+    loop {
+        let Ok(frame) = link.recv().await else { return link.lost() };
+        let down = *balance.down.lock().unwrap();
+        let mut per_node = balance.per_node.lock().unwrap();
+        match frame.id() {
+            0x080 => {
+                for n in nodes.iter().filter(|n| Some(**n) != down) {
+                    *per_node.entry(*n).or_default() += 1;
+                }
+            }
+            id if (0x281..=0x2FF).contains(&id) && Some((id - 0x280) as u8) != down => {
+                *per_node.entry((id - 0x280) as u8).or_default() -= 1;
+            }
+            _ => {}
+        }
+        drop(per_node);
+        if frame.id() == 0x7FF {
+            return link.lost();
+        }
+    }
+}
+
+async fn soak(bus: Bus, addr: &str, injector: Injector, seconds: u64, min_s: f64, max_s: f64) {
     let network = example();
+    let balance = std::sync::Arc::new(Balance { per_node: Default::default(), down: Default::default() });
     let supervisor = Supervisor::new(bus.clone(), network.clone());
     let mut events = supervisor.events();
     let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
@@ -145,6 +178,12 @@ async fn soak(bus: Bus, injector: Injector, seconds: u64, min_s: f64, max_s: f64
         let _ = stopped.await;
     }));
     booted(&mut events, network.nodes.len()).await;
+    let counter = tokio::spawn(count_in_hub_order(
+        addr.to_owned(),
+        network.nodes.iter().map(|n| n.node_id).collect(),
+        std::sync::Arc::clone(&balance),
+    ));
+    tokio::time::sleep(Duration::from_millis(100)).await;
     bus.start_sync(Duration::from_millis(1), 0).await.unwrap();
     let mut frames = bus.frames();
     let syncs = bus.syncs();
@@ -163,12 +202,14 @@ async fn soak(bus: Bus, injector: Injector, seconds: u64, min_s: f64, max_s: f64
         // Everything older is dropped (a lagged reader resumes with what is left: drained too).
         while let Ok(_) | Err(broadcast::error::TryRecvError::Lagged(_)) = frames.try_recv() {}
         let sync_before = *syncs.borrow();
+        *balance.down.lock().unwrap() = Some(victim.node_id);
         injector.power_cycle(victim.node_id);
         cycles += 1;
         let (_, t) = next_reconfigured(&mut events, victim.node_id).await;
         reconfigured += 1;
         times.push(t.as_secs_f64() * 1e3);
         tokio::time::sleep(Duration::from_millis(100)).await;
+        *balance.down.lock().unwrap() = None;
         let sync_count = *syncs.borrow() - sync_before;
         let mut tpdo2: BTreeMap<u32, u64> = BTreeMap::new();
         loop {
@@ -193,6 +234,17 @@ async fn soak(bus: Bus, injector: Injector, seconds: u64, min_s: f64, max_s: f64
     println!(
         "soak {seconds} s: {cycles} power cycles, {cycles} reboots seen, {reconfigured} reconfigured, \
          {wrong} wrong configurations, {missed} TPDO 2 missed on the other drives while one rebooted ({lagged} frames not seen in those windows: reader lagged)"
+    );
+    // The last SYNC's answers in, then the listener told to end (an id nobody else uses).
+    bus.stop_sync().await.ok();
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    bus.send(od_bus::CanFrame::standard(0x7FF, &[]).unwrap()).await.ok();
+    let lost = tokio::time::timeout(Duration::from_secs(5), counter).await.ok().and_then(Result::ok);
+    println!(
+        "in the hub's order, whole soak: SYNCs not answered by TPDO 2, per drive, outside its own power cycles: {:?} \
+         (frames the hub dropped for this listener: {})",
+        balance.per_node.lock().unwrap(),
+        lost.map_or("unknown".into(), |l| l.to_string())
     );
     if least <= most {
         println!("SYNCs minus TPDO 2 of one drive not rebooted, per window: from {least} to {most}");
@@ -232,7 +284,8 @@ async fn main() {
         Some("soak") if args.len() >= 4 => {
             let bus = Bus::open(&args[1], Config::default()).await.expect("the bus");
             let injector = Injector::Socket(PathBuf::from(&args[2]));
-            soak(bus, injector, num(3, 600.0) as u64, num(4, 10.0), num(5, 30.0)).await;
+            let addr = args[1].clone();
+            soak(bus, &addr, injector, num(3, 600.0) as u64, num(4, 10.0), num(5, 30.0)).await;
         }
         _ => {
             eprintln!(
