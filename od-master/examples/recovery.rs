@@ -136,41 +136,54 @@ impl Rng {
     }
 }
 
-/// Every SYNC and TPDO 2 in the hub's order, from a connection of its own: for each drive, SYNCs
-/// minus its TPDO 2 (a SYNC not answered stays counted), except while the drive is `down` (being
-/// power-cycled: neither its TPDO 2 nor the SYNCs count for it then).
-struct Balance {
-    per_node: std::sync::Mutex<BTreeMap<u8, i64>>,
-    down: std::sync::Mutex<Option<u8>>,
+/// Every SYNC, TPDO 2 and boot-up in the hub's order, from a connection of its own: for each
+/// drive, the SYNCs it has not answered with its TPDO 2. A boot-up forgives the SYNCs that came
+/// since its last TPDO 2 (the drive was off), and nothing counts for it until its first TPDO 2
+/// after (it is being configured); a SYNC left unanswered at any other time stays counted.
+#[derive(Default)]
+struct Unanswered {
+    /// SYNCs not answered yet.
+    owed: i64,
+    /// `owed` right after its last TPDO 2.
+    at_last: i64,
+    /// Between its boot-up and its first TPDO 2.
+    rebooting: bool,
 }
 
-async fn count_in_hub_order(addr: String, nodes: Vec<u8>, balance: std::sync::Arc<Balance>) -> u64 {
+async fn count_in_hub_order(addr: String, nodes: Vec<u8>) -> (BTreeMap<u8, i64>, u64) {
     let mut link = od_bus::tokio::Bus::open(&addr).await.expect("a listening connection to the hub");
+    let mut per_node: BTreeMap<u8, Unanswered> = nodes.iter().map(|n| (*n, Unanswered::default())).collect();
     loop {
-        let Ok(frame) = link.recv().await else { return link.lost() };
-        let down = *balance.down.lock().unwrap();
-        let mut per_node = balance.per_node.lock().unwrap();
+        let Ok(frame) = link.recv().await else { break };
+        let node =
+            |base: u32| u8::try_from(frame.id().wrapping_sub(base)).ok().and_then(|n| nodes.contains(&n).then_some(n));
         match frame.id() {
-            0x080 => {
-                for n in nodes.iter().filter(|n| Some(**n) != down) {
-                    *per_node.entry(*n).or_default() += 1;
+            0x080 => per_node.values_mut().filter(|u| !u.rebooting).for_each(|u| u.owed += 1),
+            0x7FF => break,
+            id if id & !0x7F == 0x280 => {
+                if let Some(u) = node(0x280).and_then(|n| per_node.get_mut(&n)) {
+                    if std::mem::take(&mut u.rebooting) {
+                        u.owed = u.at_last
+                    } else {
+                        u.owed -= 1
+                    }
+                    u.at_last = u.owed;
                 }
             }
-            id if (0x281..=0x2FF).contains(&id) && Some((id - 0x280) as u8) != down => {
-                *per_node.entry((id - 0x280) as u8).or_default() -= 1;
+            id if id & !0x7F == 0x700 && frame.data() == [0] => {
+                if let Some(u) = node(0x700).and_then(|n| per_node.get_mut(&n)) {
+                    u.owed = u.at_last;
+                    u.rebooting = true;
+                }
             }
             _ => {}
         }
-        drop(per_node);
-        if frame.id() == 0x7FF {
-            return link.lost();
-        }
     }
+    (per_node.into_iter().map(|(n, u)| (n, u.owed)).collect(), link.lost())
 }
 
 async fn soak(bus: Bus, addr: &str, injector: Injector, seconds: u64, min_s: f64, max_s: f64) {
     let network = example();
-    let balance = std::sync::Arc::new(Balance { per_node: Default::default(), down: Default::default() });
     let supervisor = Supervisor::new(bus.clone(), network.clone());
     let mut events = supervisor.events();
     let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
@@ -178,11 +191,7 @@ async fn soak(bus: Bus, addr: &str, injector: Injector, seconds: u64, min_s: f64
         let _ = stopped.await;
     }));
     booted(&mut events, network.nodes.len()).await;
-    let counter = tokio::spawn(count_in_hub_order(
-        addr.to_owned(),
-        network.nodes.iter().map(|n| n.node_id).collect(),
-        std::sync::Arc::clone(&balance),
-    ));
+    let counter = tokio::spawn(count_in_hub_order(addr.to_owned(), network.nodes.iter().map(|n| n.node_id).collect()));
     tokio::time::sleep(Duration::from_millis(100)).await;
     bus.start_sync(Duration::from_millis(1), 0).await.unwrap();
     let mut frames = bus.frames();
@@ -202,14 +211,12 @@ async fn soak(bus: Bus, addr: &str, injector: Injector, seconds: u64, min_s: f64
         // Everything older is dropped (a lagged reader resumes with what is left: drained too).
         while let Ok(_) | Err(broadcast::error::TryRecvError::Lagged(_)) = frames.try_recv() {}
         let sync_before = *syncs.borrow();
-        *balance.down.lock().unwrap() = Some(victim.node_id);
         injector.power_cycle(victim.node_id);
         cycles += 1;
         let (_, t) = next_reconfigured(&mut events, victim.node_id).await;
         reconfigured += 1;
         times.push(t.as_secs_f64() * 1e3);
         tokio::time::sleep(Duration::from_millis(100)).await;
-        *balance.down.lock().unwrap() = None;
         let sync_count = *syncs.borrow() - sync_before;
         let mut tpdo2: BTreeMap<u32, u64> = BTreeMap::new();
         loop {
@@ -239,13 +246,13 @@ async fn soak(bus: Bus, addr: &str, injector: Injector, seconds: u64, min_s: f64
     bus.stop_sync().await.ok();
     tokio::time::sleep(Duration::from_millis(200)).await;
     bus.send(od_bus::CanFrame::standard(0x7FF, &[]).unwrap()).await.ok();
-    let lost = tokio::time::timeout(Duration::from_secs(5), counter).await.ok().and_then(Result::ok);
-    println!(
-        "in the hub's order, whole soak: SYNCs not answered by TPDO 2, per drive, outside its own power cycles: {:?} \
-         (frames the hub dropped for this listener: {})",
-        balance.per_node.lock().unwrap(),
-        lost.map_or("unknown".into(), |l| l.to_string())
-    );
+    match tokio::time::timeout(Duration::from_secs(5), counter).await {
+        Ok(Ok((unanswered, lost))) => println!(
+            "in the hub's order, whole soak: SYNCs not answered by TPDO 2, per drive, outside its own power cycles: \
+             {unanswered:?} (frames the hub dropped for this listener: {lost})"
+        ),
+        other => println!("the hub-order count did not end: {other:?}"),
+    }
     if least <= most {
         println!("SYNCs minus TPDO 2 of one drive not rebooted, per window: from {least} to {most}");
     }
