@@ -2,9 +2,10 @@
 //! simulated device against real CAN hardware or a virtual CAN interface, through the
 //! `socketcan` crate.
 //!
-//! Enabled by the `socketcan` cargo feature, Linux only. Classic CAN only: CAN FD frames are not
-//! requested from the kernel, and error frames are not subscribed to (one that arrives all the
-//! same is skipped).
+//! Linux only. Classic CAN only: CAN FD frames are not requested from the kernel. The blocking
+//! [`SocketCan`] endpoint does not subscribe to error frames (one that arrives all the same is
+//! skipped); the async bus (`tokio::Bus`, feature `tokio`) subscribes to those that report the
+//! controller's state and reports its changes ([`controller_state`]).
 //!
 //! ```no_run
 //! use od_bus::{CanFrame, Endpoint, socketcan::SocketCan};
@@ -19,6 +20,7 @@ use std::time::{Duration, Instant};
 
 use socketcan::{EmbeddedFrame, ExtendedId, Frame as _, Socket, StandardId};
 
+use crate::controller::ControllerState;
 use crate::endpoint::Endpoint;
 use crate::error::TransportError;
 use crate::frame::{CanFrame, FrameError};
@@ -77,6 +79,21 @@ pub fn from_socketcan(frame: &socketcan::CanFrame) -> Result<CanFrame, FrameErro
     let bytes = frame.data();
     data[..bytes.len().min(8)].copy_from_slice(&bytes[..bytes.len().min(8)]);
     CanFrame::from_parts(frame.raw_id(), frame.is_extended(), frame.is_remote_frame(), dlc, data)
+}
+
+/// The controller state change an error frame from the kernel reports (bus-off, restarted,
+/// error warning, error-passive, back to error-active), `None` for a data or remote frame and
+/// for an error that is not a change of state (see [`ControllerState::from_error_frame`]).
+pub fn controller_state(frame: &socketcan::CanFrame) -> Option<ControllerState> {
+    match frame {
+        socketcan::CanFrame::Error(error) => ControllerState::from_error_frame(error.error_bits(), error.data()),
+        _ => None,
+    }
+}
+
+/// Subscribes `socket` to the error frames that report the controller's state changes.
+pub(crate) fn subscribe_state_errors(socket: &impl socketcan::SocketOptions) -> io::Result<()> {
+    socket.set_error_filter(crate::controller::STATE_ERROR_CLASSES)
 }
 
 impl Endpoint for SocketCan {
@@ -165,6 +182,41 @@ mod tests {
     fn error_frames_are_refused() {
         let error = socketcan::CanErrorFrame::new_error(0x004, &[0; 8]).unwrap();
         assert!(from_socketcan(&socketcan::CanFrame::Error(error)).is_err());
+    }
+
+    /// The kernel's error frames (drivers/net/can/dev: `can_change_state`, `can_bus_off`,
+    /// `can_restart`) in the `socketcan` crate's type, as a socket reads them.
+    #[test]
+    fn error_frames_from_the_kernel_are_controller_states() {
+        let error = |class: u32, data: &[u8]| {
+            socketcan::CanFrame::Error(socketcan::CanErrorFrame::new_error(class, data).unwrap())
+        };
+        let table = [
+            // CAN_ERR_CRTL | CAN_ERR_CNT, data[1] = CAN_ERR_CRTL_{RX,TX}_WARNING, counters 6..7.
+            (error(0x204, &[0, 0x0C, 0, 0, 0, 0, 96, 0]), Some(ControllerState::ErrorWarning)),
+            (error(0x204, &[0, 0x30, 0, 0, 0, 0, 128, 3]), Some(ControllerState::ErrorPassive)),
+            (error(0x004, &[0, 0x20]), Some(ControllerState::ErrorPassive)),
+            (error(0x204, &[0, 0x40, 0, 0, 0, 0, 0, 0]), Some(ControllerState::ErrorActive)),
+            (error(0x040, &[]), Some(ControllerState::BusOff)),
+            (error(0x240, &[0, 0, 0, 0, 0, 0, 255, 0]), Some(ControllerState::BusOff)),
+            (error(0x100, &[]), Some(ControllerState::Restarted)),
+            // A bus error with a protocol violation (stuff error in the data field), a lost
+            // arbitration, an rx overflow: no change of state.
+            (error(0x088, &[0, 0, 0x04, 0x0A]), None),
+            (error(0x002, &[5]), None),
+            (error(0x004, &[0, 0x01]), None),
+            // Data and remote frames are not error frames.
+            (to_socketcan(&CanFrame::standard(0x080, &[]).unwrap()), None),
+            (to_socketcan(&CanFrame::remote(0x705, false, 1).unwrap()), None),
+        ];
+        for (frame, want) in table {
+            assert_eq!(controller_state(&frame), want, "{frame:?}");
+            // The error flag is on in what the socket reads; the frame is never a data frame.
+            if want.is_some() {
+                assert_eq!(frame.id_word() & 0x2000_0000, 0x2000_0000, "{frame:?}");
+                assert!(from_socketcan(&frame).is_err());
+            }
+        }
     }
 
     #[test]

@@ -10,7 +10,9 @@
 //!   (handshake, parsing, formatting). When the connection fails it reconnects in the
 //!   background with backoff ([`Options::reconnect`]); meanwhile [`BusSender::send`] fails with
 //!   [`TransportError::Down`], and [`Bus::link`] shows the link going down and coming back.
-//! * `socketcan://IFACE` (Linux) is the `socketcan` crate's tokio socket.
+//! * `socketcan://IFACE` (Linux) is the `socketcan` crate's tokio socket. It subscribes to the
+//!   error frames that report the controller's state (warning, error-passive, bus-off,
+//!   restarted, error-active again): [`Bus::controller`] reports each change.
 //! * `slcan://PORT?bitrate=N` is an slcan adapter on a serial port, served by two threads of
 //!   its own (serial ports have no portable async I/O): one reads and decodes
 //!   ([`slcan::Session`](crate::slcan::Session): status flags polled and bus-off recovered on
@@ -50,6 +52,7 @@ use crate::addr::host_for_connect;
 use crate::bus::Channel;
 use crate::bus::MemoryBus;
 use crate::client::{ClientSession, map_io};
+use crate::controller::ControllerState;
 use crate::error::TransportError;
 use crate::frame::CanFrame;
 use crate::queue::BoundedQueue;
@@ -113,6 +116,36 @@ pub enum LinkState {
     Closed,
 }
 
+/// The CAN controller's state changes of a bus ([`Bus::controller`]): every listener
+/// ([`subscribe`](Controller::subscribe)) gets each change, in order. A SocketCAN bus reports
+/// them from the kernel's error frames, an slcan bus its adapter's bus-off (then restarted, once
+/// the session opened the channel again); a memory or socketcand bus has no controller of its
+/// own, and only [`report`](Controller::report) (a test playing a controller) says anything.
+#[derive(Clone, Debug)]
+pub struct Controller {
+    changes: ::tokio::sync::broadcast::Sender<ControllerState>,
+}
+
+impl Controller {
+    /// Changes kept for a listener that is behind; past them it misses the oldest
+    /// (`RecvError::Lagged`).
+    const KEPT: usize = 64;
+
+    fn new() -> Self {
+        Self { changes: ::tokio::sync::broadcast::channel(Self::KEPT).0 }
+    }
+
+    /// Every change from now on.
+    pub fn subscribe(&self) -> ::tokio::sync::broadcast::Receiver<ControllerState> {
+        self.changes.subscribe()
+    }
+
+    /// Reports a change to the listeners (none listening: nothing happens).
+    pub fn report(&self, state: ControllerState) {
+        let _ = self.changes.send(state);
+    }
+}
+
 /// An async handle on a bus: send frames, receive the frames the other members send (never its
 /// own), and [`split`](Bus::split) into halves for two tasks.
 pub struct Bus {
@@ -125,12 +158,14 @@ pub struct Bus {
 pub struct BusSender {
     inner: Tx,
     link: watch::Receiver<LinkState>,
+    controller: Controller,
 }
 
 /// The receiving half of a [`Bus`].
 pub struct BusReceiver {
     inner: Rx,
     link: watch::Receiver<LinkState>,
+    controller: Controller,
 }
 
 #[derive(Clone)]
@@ -195,9 +230,14 @@ impl Bus {
         let (link_tx, link) = watch::channel(LinkState::Up { reconnects: 0 });
         // Nothing ever changes a memory bus's link; the receivers see the value above.
         drop(link_tx);
+        let controller = Controller::new();
         Self {
-            tx: BusSender { inner: Tx::Memory(Arc::clone(&member)), link: link.clone() },
-            rx: BusReceiver { inner: Rx::Memory(member), link },
+            tx: BusSender {
+                inner: Tx::Memory(Arc::clone(&member)),
+                link: link.clone(),
+                controller: controller.clone(),
+            },
+            rx: BusReceiver { inner: Rx::Memory(member), link, controller },
         }
     }
 
@@ -219,6 +259,11 @@ impl Bus {
     /// The link's state, and a way to wait for it to change (`changed().await`).
     pub fn link(&self) -> watch::Receiver<LinkState> {
         self.rx.link.clone()
+    }
+
+    /// Its CAN controller's state changes (SocketCAN, slcan; see [`Controller`]).
+    pub fn controller(&self) -> Controller {
+        self.rx.controller.clone()
     }
 
     /// Splits the bus into a sender and a receiver, usable from different tasks. The bus stays
@@ -273,6 +318,11 @@ impl BusSender {
     pub fn link(&self) -> watch::Receiver<LinkState> {
         self.link.clone()
     }
+
+    /// The controller's state changes (see [`Bus::controller`]).
+    pub fn controller(&self) -> Controller {
+        self.controller.clone()
+    }
 }
 
 impl BusReceiver {
@@ -318,9 +368,15 @@ impl BusReceiver {
                     .read_frame()
                     .await
                     .map_err(|e| TransportError::io(format!("cannot read from {interface}"), e))?;
-                // Error frames are not data or remote frames: read on.
-                if let Ok(frame) = crate::socketcan::from_socketcan(&frame) {
-                    return Ok(frame);
+                match crate::socketcan::from_socketcan(&frame) {
+                    Ok(frame) => return Ok(frame),
+                    // An error frame: reported when it says the controller's state changed,
+                    // then read on.
+                    Err(_) => {
+                        if let Some(state) = crate::socketcan::controller_state(&frame) {
+                            self.controller.report(state);
+                        }
+                    }
                 }
             },
             Rx::Slcan { frames, .. } => frames.recv().await.ok_or(TransportError::Closed),
@@ -344,6 +400,12 @@ impl BusReceiver {
     /// The link's state (see [`Bus::link`]).
     pub fn link(&self) -> watch::Receiver<LinkState> {
         self.link.clone()
+    }
+
+    /// The controller's state changes (see [`Bus::controller`]); on SocketCAN they are found
+    /// by [`recv`](BusReceiver::recv), which must be called for them to be reported.
+    pub fn controller(&self) -> Controller {
+        self.controller.clone()
     }
 }
 
@@ -565,12 +627,14 @@ async fn open_socketcand(host: &str, port: u16, channel: &str, options: &Options
     };
     *shared.writer.lock().await = Some((connection.writer, 1));
     ::tokio::spawn(task.run(connection.reader, connection.session, connection.early, stop_rx));
+    let controller = Controller::new();
     Ok(Bus {
         tx: BusSender {
             inner: Tx::Socketcand { shared: Arc::clone(&shared), _stop: Arc::clone(&guard) },
             link: link.clone(),
+            controller: controller.clone(),
         },
-        rx: BusReceiver { inner: Rx::Socketcand { frames: frames_rx, shared, _stop: guard }, link },
+        rx: BusReceiver { inner: Rx::Socketcand { frames: frames_rx, shared, _stop: guard }, link, controller },
     })
 }
 
@@ -681,13 +745,21 @@ impl ConnectionTask {
 fn open_socketcan(interface: &str) -> Result<Bus, TransportError> {
     let socket =
         socketcan::tokio::CanSocket::open(interface).map_err(|e| crate::socketcan::open_error(interface, e))?;
+    crate::socketcan::subscribe_state_errors(&socket).map_err(|e| {
+        TransportError::io(format!("cannot subscribe to the error frames of CAN interface {interface:?}"), e)
+    })?;
     let socket = Arc::new(socket);
     let name: Arc<str> = Arc::from(interface);
     let (link_tx, link) = watch::channel(LinkState::Up { reconnects: 0 });
     drop(link_tx);
+    let controller = Controller::new();
     Ok(Bus {
-        tx: BusSender { inner: Tx::SocketCan(Arc::clone(&socket), Arc::clone(&name)), link: link.clone() },
-        rx: BusReceiver { inner: Rx::SocketCan(socket, name), link },
+        tx: BusSender {
+            inner: Tx::SocketCan(Arc::clone(&socket), Arc::clone(&name)),
+            link: link.clone(),
+            controller: controller.clone(),
+        },
+        rx: BusReceiver { inner: Rx::SocketCan(socket, name), link, controller },
     })
 }
 
@@ -703,6 +775,8 @@ struct SerialShared {
     /// To the writer thread.
     out: mpsc::Sender<Out>,
     link: watch::Sender<LinkState>,
+    /// Told of a bus-off and of the restart that follows.
+    controller: Controller,
     /// Both halves are gone: the threads close the channel (`C`) and end.
     stop: AtomicBool,
     /// A write failed: the reader gives the port up and opens it again. (The writer holds
@@ -778,9 +852,11 @@ async fn open_slcan(
     let (link_tx, link) = watch::channel(LinkState::Up { reconnects: 0 });
     let (out_tx, out_rx) = mpsc::channel(256);
     let (frames_tx, frames_rx) = mpsc::channel(options.receive_queue.max(1));
+    let controller = Controller::new();
     let shared = Arc::new(SerialShared {
         out: out_tx,
         link: link_tx,
+        controller: controller.clone(),
         stop: AtomicBool::new(false),
         broken: Arc::new(AtomicBool::new(false)),
         overruns: AtomicU64::new(0),
@@ -806,8 +882,8 @@ async fn open_slcan(
         .map_err(|e| TransportError::io("cannot start the slcan reader thread", e))?;
     let guard = Arc::new(SerialGuard(shared));
     Ok(Bus {
-        tx: BusSender { inner: Tx::Slcan(Arc::clone(&guard)), link: link.clone() },
-        rx: BusReceiver { inner: Rx::Slcan { frames: frames_rx, guard }, link },
+        tx: BusSender { inner: Tx::Slcan(Arc::clone(&guard)), link: link.clone(), controller: controller.clone() },
+        rx: BusReceiver { inner: Rx::Slcan { frames: frames_rx, guard }, link, controller },
     })
 }
 
@@ -959,6 +1035,8 @@ impl SerialReader {
                     attempts: 1,
                 });
                 self.shared.link.send_replace(LinkState::Up { reconnects: reconnects + 1 });
+                self.shared.controller.report(ControllerState::BusOff);
+                self.shared.controller.report(ControllerState::Restarted);
             }
             for frame in frames.drain(..) {
                 // A receiver that was dropped takes nothing; the sender still works.

@@ -136,7 +136,53 @@ impl Rng {
     }
 }
 
-async fn soak(bus: Bus, injector: Injector, seconds: u64, min_s: f64, max_s: f64) {
+/// Every SYNC, TPDO 2 and boot-up in the hub's order, from a connection of its own: for each
+/// drive, the SYNCs it has not answered with its TPDO 2. A boot-up forgives the SYNCs that came
+/// since its last TPDO 2 (the drive was off), and nothing counts for it until its first TPDO 2
+/// after (it is being configured); a SYNC left unanswered at any other time stays counted.
+#[derive(Default)]
+struct Unanswered {
+    /// SYNCs not answered yet.
+    owed: i64,
+    /// `owed` right after its last TPDO 2.
+    at_last: i64,
+    /// Between its boot-up and its first TPDO 2.
+    rebooting: bool,
+}
+
+async fn count_in_hub_order(addr: String, nodes: Vec<u8>) -> (BTreeMap<u8, i64>, u64) {
+    let mut link = od_bus::tokio::Bus::open(&addr).await.expect("a listening connection to the hub");
+    let mut per_node: BTreeMap<u8, Unanswered> = nodes.iter().map(|n| (*n, Unanswered::default())).collect();
+    loop {
+        let Ok(frame) = link.recv().await else { break };
+        let node =
+            |base: u32| u8::try_from(frame.id().wrapping_sub(base)).ok().and_then(|n| nodes.contains(&n).then_some(n));
+        match frame.id() {
+            0x080 => per_node.values_mut().filter(|u| !u.rebooting).for_each(|u| u.owed += 1),
+            0x7FF => break,
+            id if id & !0x7F == 0x280 => {
+                if let Some(u) = node(0x280).and_then(|n| per_node.get_mut(&n)) {
+                    if std::mem::take(&mut u.rebooting) {
+                        u.owed = u.at_last
+                    } else {
+                        u.owed -= 1
+                    }
+                    u.at_last = u.owed;
+                }
+            }
+            id if id & !0x7F == 0x700 && frame.data() == [0] => {
+                if let Some(u) = node(0x700).and_then(|n| per_node.get_mut(&n)) {
+                    u.owed = u.at_last;
+                    u.rebooting = true;
+                }
+            }
+            _ => {}
+        }
+    }
+    (per_node.into_iter().map(|(n, u)| (n, u.owed)).collect(), link.lost())
+}
+
+async fn soak(bus: Bus, addr: &str, injector: Injector, seconds: u64, min_s: f64, max_s: f64) {
     let network = example();
     let supervisor = Supervisor::new(bus.clone(), network.clone());
     let mut events = supervisor.events();
@@ -145,6 +191,8 @@ async fn soak(bus: Bus, injector: Injector, seconds: u64, min_s: f64, max_s: f64
         let _ = stopped.await;
     }));
     booted(&mut events, network.nodes.len()).await;
+    let counter = tokio::spawn(count_in_hub_order(addr.to_owned(), network.nodes.iter().map(|n| n.node_id).collect()));
+    tokio::time::sleep(Duration::from_millis(100)).await;
     bus.start_sync(Duration::from_millis(1), 0).await.unwrap();
     let mut frames = bus.frames();
     let syncs = bus.syncs();
@@ -152,6 +200,9 @@ async fn soak(bus: Bus, injector: Injector, seconds: u64, min_s: f64, max_s: f64
     let end = Instant::now() + Duration::from_secs(seconds);
     let (mut cycles, mut reconfigured, mut wrong, mut missed, mut lagged) = (0u64, 0u64, 0u64, 0u64, 0u64);
     let mut times = Vec::new();
+    // SYNCs minus TPDO 2 in one window, for one drive: the least and the most seen (the count
+    // above forgives 2 a window, one at each edge; this shows what the edges really took).
+    let (mut least, mut most) = (i64::MAX, i64::MIN);
     while Instant::now() < end {
         let wait = min_s + (max_s - min_s) * (rng.next() % 1000) as f64 / 1000.0;
         tokio::time::sleep(Duration::from_secs_f64(wait)).await;
@@ -179,6 +230,8 @@ async fn soak(bus: Bus, injector: Injector, seconds: u64, min_s: f64, max_s: f64
             let got = tpdo2.get(&(0x280 + u32::from(other.node_id))).copied().unwrap_or(0);
             // One at each edge of the window may fall outside it.
             missed += sync_count.saturating_sub(got + 2);
+            let short = sync_count as i64 - got as i64;
+            (least, most) = (least.min(short), most.max(short));
         }
         if let Err(e) = verify(&bus, victim).await {
             eprintln!("wrong configuration of {}: {e}", victim.name);
@@ -189,6 +242,20 @@ async fn soak(bus: Bus, injector: Injector, seconds: u64, min_s: f64, max_s: f64
         "soak {seconds} s: {cycles} power cycles, {cycles} reboots seen, {reconfigured} reconfigured, \
          {wrong} wrong configurations, {missed} TPDO 2 missed on the other drives while one rebooted ({lagged} frames not seen in those windows: reader lagged)"
     );
+    // The last SYNC's answers in, then the listener told to end (an id nobody else uses).
+    bus.stop_sync().await.ok();
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    bus.send(od_bus::CanFrame::standard(0x7FF, &[]).unwrap()).await.ok();
+    match tokio::time::timeout(Duration::from_secs(5), counter).await {
+        Ok(Ok((unanswered, lost))) => println!(
+            "in the hub's order, whole soak: SYNCs not answered by TPDO 2, per drive, outside its own power cycles: \
+             {unanswered:?} (frames the hub dropped for this listener: {lost})"
+        ),
+        other => println!("the hub-order count did not end: {other:?}"),
+    }
+    if least <= most {
+        println!("SYNCs minus TPDO 2 of one drive not rebooted, per window: from {least} to {most}");
+    }
     if !times.is_empty() {
         stats("all drives: boot-up -> heartbeat says Operational", times);
     }
@@ -224,7 +291,8 @@ async fn main() {
         Some("soak") if args.len() >= 4 => {
             let bus = Bus::open(&args[1], Config::default()).await.expect("the bus");
             let injector = Injector::Socket(PathBuf::from(&args[2]));
-            soak(bus, injector, num(3, 600.0) as u64, num(4, 10.0), num(5, 30.0)).await;
+            let addr = args[1].clone();
+            soak(bus, &addr, injector, num(3, 600.0) as u64, num(4, 10.0), num(5, 30.0)).await;
         }
         _ => {
             eprintln!(

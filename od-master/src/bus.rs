@@ -69,6 +69,7 @@ pub struct Bus {
     frames: broadcast::Sender<CanFrame>,
     syncs: watch::Receiver<u64>,
     link: watch::Receiver<LinkState>,
+    controller: od_bus::tokio::Controller,
     sdo: SdoOptions,
 }
 
@@ -139,6 +140,7 @@ impl Bus {
         let (frames, _) = broadcast::channel(4096);
         let (sync_tx, syncs) = watch::channel(0);
         let link_state = link.link();
+        let controller = link.controller();
         let (tx, rx) = link.split();
         let start = Instant::now();
         let heartbeat = config.heartbeat.map(|(id, period)| HeartbeatProducer::new(id, micros(period)));
@@ -167,7 +169,7 @@ impl Bus {
             cyclic: Vec::new(),
         };
         tokio::spawn(task.run());
-        Self { commands, events, frames, syncs, link: link_state, sdo: config.sdo }
+        Self { commands, events, frames, syncs, link: link_state, controller, sdo: config.sdo }
     }
 
     /// The SDO options of the node handles [`Bus::node`] makes.
@@ -189,6 +191,13 @@ impl Bus {
     /// [`od_bus::tokio::LinkState`]).
     pub fn link(&self) -> watch::Receiver<LinkState> {
         self.link.clone()
+    }
+
+    /// The CAN controller's state changes (error warning, error-passive, bus-off, restarted,
+    /// error-active again): a SocketCAN bus reports them from the kernel's error frames, an
+    /// slcan bus its adapter's bus-off; see [`od_bus::tokio::Controller`].
+    pub fn controller(&self) -> broadcast::Receiver<od_bus::ControllerState> {
+        self.controller.subscribe()
     }
 
     /// The number of SYNCs sent so far; `changed().await` on it waits for the next one.

@@ -14,7 +14,10 @@
 //!   with CiA 302-2's letter; the node is not started; for a mandatory node the network's
 //!   `on_mandatory_failure`, at most `boot_attempts` times in a row;
 //! - the link going down and up (socketcand): reported, and each node's configuration read
-//!   back when it is up again; a node that lost it is configured again.
+//!   back when it is up again; a node that lost it is configured again;
+//! - the CAN controller's state ([`Bus::controller`]: SocketCAN's error frames, an slcan
+//!   adapter's bus-off): error warning, error-passive, bus-off, restarted, error-active again
+//!   reported; after a restart each node's configuration is read back as after the link.
 //!
 //! What to do is decided by [`policy::decide`], a function of the policy and what happened,
 //! without I/O or clock; this module carries the decisions out. Everything is reported as a
@@ -81,46 +84,25 @@ pub enum BusState {
     Closed,
 }
 
-/// SocketCAN's error frame layout (`linux/can/error.h`): the class bits in the identifier, the
-/// controller's problem in data byte 1.
-mod can_err {
-    pub const FLAG: u32 = 0x2000_0000;
-    pub const CRTL: u32 = 0x0000_0004;
-    pub const BUSOFF: u32 = 0x0000_0040;
-    pub const RESTARTED: u32 = 0x0000_0100;
-    pub const CRTL_RX_WARNING: u8 = 0x04;
-    pub const CRTL_TX_WARNING: u8 = 0x08;
-    pub const CRTL_RX_PASSIVE: u8 = 0x10;
-    pub const CRTL_TX_PASSIVE: u8 = 0x20;
-    pub const CRTL_ACTIVE: u8 = 0x40;
-}
-
 impl BusState {
     /// The state a SocketCAN error frame reports (its CAN id with or without the error flag,
     /// and its data), if it reports one: bus-off, restarted, or the controller's passive,
     /// warning or active state. Other errors (a lost arbitration, a protocol error) are not a
-    /// change of state: `None`.
+    /// change of state: `None`. (The bus decodes them: [`od_bus::ControllerState::from_error_frame`].)
     pub fn from_error_frame(id: u32, data: &[u8]) -> Option<BusState> {
-        let class = id & !can_err::FLAG;
-        if class & can_err::BUSOFF != 0 {
-            return Some(BusState::BusOff);
+        od_bus::ControllerState::from_error_frame(id, data).map(BusState::from)
+    }
+}
+
+impl From<od_bus::ControllerState> for BusState {
+    fn from(state: od_bus::ControllerState) -> Self {
+        match state {
+            od_bus::ControllerState::ErrorActive => BusState::ErrorActive,
+            od_bus::ControllerState::ErrorWarning => BusState::ErrorWarning,
+            od_bus::ControllerState::ErrorPassive => BusState::ErrorPassive,
+            od_bus::ControllerState::BusOff => BusState::BusOff,
+            od_bus::ControllerState::Restarted => BusState::Restarted,
         }
-        if class & can_err::RESTARTED != 0 {
-            return Some(BusState::Restarted);
-        }
-        if class & can_err::CRTL != 0 {
-            let crtl = data.get(1).copied().unwrap_or(0);
-            if crtl & (can_err::CRTL_RX_PASSIVE | can_err::CRTL_TX_PASSIVE) != 0 {
-                return Some(BusState::ErrorPassive);
-            }
-            if crtl & (can_err::CRTL_RX_WARNING | can_err::CRTL_TX_WARNING) != 0 {
-                return Some(BusState::ErrorWarning);
-            }
-            if crtl & can_err::CRTL_ACTIVE != 0 {
-                return Some(BusState::ErrorActive);
-            }
-        }
-        None
     }
 }
 
@@ -229,7 +211,8 @@ pub enum SupervisorEvent {
         /// Its name.
         name: String,
     },
-    /// Its configuration was read back after the link came back and is as configured.
+    /// Its configuration was read back after the master was off the bus (link down and up, bus-off
+    /// and restarted) and is as configured.
     Verified {
         /// Node id.
         node: u8,
@@ -452,6 +435,8 @@ impl Supervisor {
         let mut summary = Summary::default();
         // Subscribed before anything is sent, so that nothing after is missed.
         let mut bus_events = self.bus.events();
+        let mut controller = self.bus.controller();
+        let mut controller_open = true;
         let mut runs: BTreeMap<u8, NodeRun> =
             self.network.nodes.iter().map(|n| (n.node_id, NodeRun::default())).collect();
         let mut tasks: JoinSet<Done> = JoinSet::new();
@@ -505,6 +490,14 @@ impl Supervisor {
                     }
                     Err(broadcast::error::RecvError::Lagged(_)) => {}
                     Err(broadcast::error::RecvError::Closed) => break,
+                },
+                change = controller.recv(), if controller_open => match change {
+                    Ok(state) => self.controller_changed(state, &mut tasks),
+                    // Changes missed: what the controller went through is unknown, as after
+                    // a link that was down.
+                    Err(broadcast::error::RecvError::Lagged(_)) => self.verify_all(&mut tasks),
+                    // Nothing reports any more (the bus handles keep it open while they live).
+                    Err(broadcast::error::RecvError::Closed) => controller_open = false,
                 },
                 Some(done) = tasks.join_next(), if !tasks.is_empty() => match done {
                     Ok(Done::Boot { node, generation, report }) => {
@@ -661,12 +654,8 @@ impl Supervisor {
             }
             Event::Link(LinkState::Up { .. }) => {
                 self.emit(SupervisorEvent::Bus(BusState::LinkUp));
-                // What happened while the link was down is unknown: each node's configuration
-                // is read back, and a node that lost it is configured again.
-                for n in self.network.nodes.iter().filter(|n| n.supervision.configure) {
-                    let (bus, n) = (self.bus.clone(), n.clone());
-                    tasks.spawn(async move { Done::Verify { node: n.node_id, result: verify(&bus, &n).await } });
-                }
+                // What happened while the link was down is unknown.
+                self.verify_all(tasks);
             }
             Event::Link(LinkState::Closed) => {
                 self.emit(SupervisorEvent::Bus(BusState::Closed));
@@ -675,6 +664,24 @@ impl Supervisor {
             _ => {}
         }
         true
+    }
+
+    /// Each node's configuration is read back, and a node that lost it is configured again:
+    /// what happened on the bus while the master was not on it is unknown.
+    fn verify_all(&self, tasks: &mut JoinSet<Done>) {
+        for n in self.network.nodes.iter().filter(|n| n.supervision.configure) {
+            let (bus, n) = (self.bus.clone(), n.clone());
+            tasks.spawn(async move { Done::Verify { node: n.node_id, result: verify(&bus, &n).await } });
+        }
+    }
+
+    /// The CAN controller's state changed: reported; once it is back on the bus after bus-off,
+    /// every node is read back (boot-ups and state changes sent meanwhile were not heard).
+    fn controller_changed(&self, state: od_bus::ControllerState, tasks: &mut JoinSet<Done>) {
+        self.emit(SupervisorEvent::Bus(BusState::from(state)));
+        if state == od_bus::ControllerState::Restarted {
+            self.verify_all(tasks);
+        }
     }
 
     /// After `action` (a reset sent because of `node`), the nodes reset are booted
@@ -738,7 +745,7 @@ impl Supervisor {
                     step: Stage::Configure,
                     object: None,
                     reason: None,
-                    message: format!("read back after the link came back: {message}; configuring again"),
+                    message: format!("read back after the master was off the bus: {message}; configuring again"),
                 });
                 if let Some(run) = runs.get_mut(&node)
                     && run.booting.is_none()

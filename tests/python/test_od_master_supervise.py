@@ -4,6 +4,9 @@ description's values, start); the test then makes the node forget its configurat
 its boot-up message, as a node that restarted at run time does: the supervisor configures it
 again with the description's values.
 
+And the three drives of networks/example.toml, each in a `drive-sim run` process of its own:
+one process killed with SIGKILL and started again, supervised by `od-master run`.
+
 OD_MASTER points at the binary (otherwise target/debug/od-master)."""
 
 import json
@@ -12,6 +15,7 @@ import queue
 import signal
 import subprocess
 import threading
+import time
 from pathlib import Path
 
 from conftest import ROOT, missing
@@ -80,6 +84,129 @@ producer_heartbeat_time = 100
         assert local.sdo[0x1017].raw == 100
         wait_until(lambda: local.nmt.state == "OPERATIONAL", timeout=3, what="node 5 operational again")
     finally:
+        proc.send_signal(signal.SIGINT)
+        code = proc.wait(timeout=10)
+    assert code == 0, proc.stderr.read()
+
+
+# y_axis (the DRCS, node 3) of networks/example.toml: what `od-master run` configures, read back
+# after the first boot and after the process was killed and started again.
+Y_OBJECTS = [
+    (0x1017, 0),
+    (0x1400, 1), (0x1400, 2), (0x1401, 1), (0x1401, 2),
+    (0x1600, 0), (0x1600, 1), (0x1600, 2), (0x1601, 0), (0x1601, 1), (0x1601, 2),
+    (0x1800, 1), (0x1800, 2), (0x1800, 5), (0x1801, 1), (0x1801, 2),
+    (0x1A00, 0), (0x1A00, 1), (0x1A00, 2), (0x1A01, 0), (0x1A01, 1), (0x1A01, 2),
+    (0x6060, 0),
+]
+SYNC_PERIOD = 0.01
+
+
+def test_a_drive_process_killed_and_started_again_is_configured_again_and_the_others_miss_no_sync(
+        start_drive_sim, canopen_network, can_bus, wait_until):
+    """The three drives of networks/example.toml, each in a `drive-sim run` process of its own
+    on a hub, supervised by `od-master run`. The DRCS's process is killed with SIGKILL (no
+    frame more, its configuration gone with it) and started again: the supervisor reports it
+    lost, then its boot-up, configures it with the same writes as at the first boot, and its
+    PDO mappings, heartbeat time and mode read back as after the first boot. Meanwhile the
+    DRVI and the AKD answer every SYNC (the test's, every 10 ms) with their TPDO 2."""
+    import canopen
+
+    hub = start_drive_sim("hub", "--listen", "127.0.0.1:0", "--quiet")
+    drives = {}
+    for device, node_id in (("drvi", 2), ("drcs", 3), ("akd", 4)):
+        drives[node_id] = start_drive_sim(
+            "run", "--device", device, "--node-id", node_id, "--bus", hub.bus_spec(), ready="running on ")
+    proc = subprocess.Popen(
+        [binary("OD_MASTER", "od-master"), "--bus", f"socketcand://{hub.address}/can0", "--json", "run",
+         str(ROOT / "networks" / "example.toml")],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    lines = queue.Queue()
+    threading.Thread(target=lambda: [lines.put(json.loads(l)) for l in proc.stdout], daemon=True).start()
+
+    def expect(event, node, timeout=10):
+        seen = []
+        while True:
+            try:
+                line = lines.get(timeout=timeout)
+            except queue.Empty:
+                raise AssertionError(f"no {event} line for node {node}; seen {seen}")
+            if line["event"] == event and line.get("node") == node:
+                return line, seen
+            seen.append(line)
+
+    network = canopen_network(hub)
+    y = network.add_node(3, str(ROOT / "devices" / "camozzi-drcs.eds"))
+
+    def read_back():
+        return {(i, s): bytes(y.sdo.upload(i, s)) for i, s in Y_OBJECTS}
+
+    # Every frame on the bus, in the hub's order, from another connection.
+    listener = can_bus(hub)
+    frames = []
+    listening = threading.Event()
+    listening.set()
+
+    def listen():
+        while listening.is_set():
+            msg = listener.recv(timeout=0.1)
+            if msg is not None:
+                frames.append((msg.arbitration_id, bytes(msg.data), time.monotonic()))
+
+    reader = threading.Thread(target=listen, daemon=True)
+    try:
+        booted = {}
+        for node in (2, 3, 4):
+            booted[node], _ = expect("booted", node)
+        wait_until(lambda: y.nmt.state == "OPERATIONAL", timeout=3, what="node 3 operational")
+        first = read_back()
+        assert first[(0x1017, 0)] == (100).to_bytes(2, "little"), first
+        assert first[(0x1A01, 0)] == bytes([2]), first
+
+        reader.start()
+        network.sync.start(SYNC_PERIOD)
+        time.sleep(0.2)
+        killed = drives.pop(3)
+        killed.process.send_signal(signal.SIGKILL)
+        killed.process.wait(timeout=5)
+        start_drive_sim.started.remove(killed)
+        killed.exit_code = killed.process.returncode
+        expect("lost", 3, timeout=3)
+        drives[3] = start_drive_sim(
+            "run", "--device", "drcs", "--node-id", 3, "--bus", hub.bus_spec(), ready="running on ")
+        _, between = expect("rebooted", 3)
+        assert not [e for e in between if e.get("node") in (2, 4)], between
+        done, between = expect("reconfigured", 3)
+        assert done["writes"] == booted[3]["writes"], (done, booted[3])
+        assert not [e for e in between if e.get("node") in (2, 4)], between
+        time.sleep(0.2)
+        network.sync.stop()
+        time.sleep(0.05)
+        listening.clear()
+        reader.join(timeout=2)
+
+        wait_until(lambda: y.nmt.state == "OPERATIONAL", timeout=3, what="node 3 operational again")
+        again = read_back()
+        assert again == first, {k: (first[k].hex(), again[k].hex()) for k in first if first[k] != again[k]}
+
+        # Every SYNC answered by the DRVI and the AKD with one TPDO 2 (transmission type 1: only
+        # a SYNC makes them send it), while the DRCS was killed, silent, started and configured.
+        syncs = [i for i, (cob, _, _) in enumerate(frames) if cob == 0x080]
+        assert len(syncs) > 50, f"{len(syncs)} SYNCs"
+        after_first = [cob for cob, _, _ in frames[syncs[0]:]]
+        answered = {cob: after_first.count(cob) for cob in (0x282, 0x284)}
+        # (On failure: the SYNC periods without exactly one of each, seconds after the first.)
+        odd = []
+        for a, b in zip(syncs, syncs[1:] + [len(frames)]):
+            window = [f"{cob:03X}h" for cob, _, _ in frames[a + 1:b] if cob in (0x282, 0x284)]
+            if window.count("282h") != 1 or window.count("284h") != 1:
+                odd.append((round(frames[a][2] - frames[syncs[0]][2], 4), window))
+        assert answered == {0x282: len(syncs), 0x284: len(syncs)}, f"{answered} for {len(syncs)} SYNCs: {odd}"
+        # The new process's boot-up went out on the bus.
+        assert any(cob == 0x703 and data == b"\x00" for cob, data, _ in frames)
+    finally:
+        listening.clear()
+        network.sync.stop()
         proc.send_signal(signal.SIGINT)
         code = proc.wait(timeout=10)
     assert code == 0, proc.stderr.read()

@@ -110,8 +110,10 @@ fn run_counting(
         if owed_poll {
             // No waiting, but what the bus has is taken: nodes busy with each other must not
             // shut the bus out.
+            let mut after_sync = false;
             for _ in 0..MAX_LOCAL_ROUNDS {
                 let Some(frame) = bus.try_recv()? else { break };
+                answer_sync(nodes, &mut out, &mut after_sync, &frame, clock.now(), stats);
                 hand_over(nodes, None, &frame, clock.now());
                 stats.received += 1;
             }
@@ -120,9 +122,12 @@ fn run_counting(
             let Some(frame) = bus.recv_timeout(wait)? else { continue };
             hand_over(nodes, None, &frame, clock.now());
             stats.received += 1;
-            // What came with it in the same read is handled before anyone answers.
+            let mut after_sync = is_sync(&frame);
+            // What came with it in the same read is handled before anyone answers, but for
+            // the SYNCs: each is answered before the next frame (see `answer_sync`).
             while bus.buffered() > 0 {
                 let Some(frame) = bus.try_recv()? else { break };
+                answer_sync(nodes, &mut out, &mut after_sync, &frame, clock.now(), stats);
                 hand_over(nodes, None, &frame, clock.now());
                 stats.received += 1;
             }
@@ -164,6 +169,38 @@ fn run_counting(
 /// they were last handed come at the next turn, after what is due on the bus has gone out (two
 /// nodes that answered each other forever would otherwise starve the bus).
 const MAX_LOCAL_ROUNDS: usize = 8;
+
+/// CiA 301's SYNC (the default COB-ID 80h, which every simulated device consumes).
+fn is_sync(frame: &CanFrame) -> bool {
+    frame.id() == 0x080 && !frame.is_extended() && !frame.is_remote()
+}
+
+/// Before `next` is handed over: when the frame handed over before it was a SYNC, the nodes
+/// are polled first (their frames kept in `out` for the turn's one write), so that each SYNC
+/// gets its synchronous TPDOs. Several SYNCs in one read (the thread was late, or the master
+/// sent them close together) would otherwise be handled before one poll, and a device answers
+/// what is due once: a TPDO missing for every SYNC but the last.
+fn answer_sync(
+    nodes: &mut [&mut dyn AnyNode],
+    out: &mut Vec<(usize, CanFrame)>,
+    after_sync: &mut bool,
+    next: &CanFrame,
+    now: Micros,
+    stats: &mut RunStats,
+) {
+    if std::mem::replace(after_sync, is_sync(next)) {
+        let start = out.len();
+        for (i, node) in nodes.iter_mut().enumerate() {
+            node.poll(now, &mut |frame| out.push((i, frame)));
+        }
+        stats.polls += 1;
+        if nodes.len() > 1 {
+            for &(from, frame) in &out[start..] {
+                hand_over(nodes, Some(from), &frame, now);
+            }
+        }
+    }
+}
 
 /// Gives `frame` to every node of the group but its sender.
 fn hand_over(nodes: &mut [&mut dyn AnyNode], from: Option<usize>, frame: &CanFrame, now: Micros) {

@@ -312,3 +312,78 @@ fn devices_that_answer_each_other_forever_lose_nothing_and_do_not_starve_the_bus
     assert!(before > 0);
     assert_eq!(master.pending() as u64 + master.dropped(), said_a + said_b);
 }
+
+/// An endpoint that hands out scripted reads: each read's frames come at once (the first from
+/// `recv_timeout`, the others held, as `buffered` says), as a hub's frames do when the device's
+/// thread was late; every frame sent is kept. Closed once the script is done.
+struct Reads {
+    reads: std::collections::VecDeque<Vec<CanFrame>>,
+    held: std::collections::VecDeque<CanFrame>,
+    sent: Arc<std::sync::Mutex<Vec<CanFrame>>>,
+}
+
+impl Endpoint for Reads {
+    fn send(&mut self, frame: CanFrame) -> Result<(), TransportError> {
+        self.sent.lock().unwrap().push(frame);
+        Ok(())
+    }
+
+    fn recv_timeout(&mut self, _timeout: Duration) -> Result<Option<CanFrame>, TransportError> {
+        if let Some(frame) = self.held.pop_front() {
+            return Ok(Some(frame));
+        }
+        let read = self.reads.pop_front().ok_or(TransportError::Closed)?;
+        self.held.extend(read);
+        Ok(self.held.pop_front())
+    }
+
+    fn buffered(&self) -> usize {
+        self.held.len()
+    }
+}
+
+/// Several SYNCs in one read (the device's thread was late, or the master sent them close
+/// together): each gets its synchronous TPDO, as on a CAN bus where every SYNC is a frame of its
+/// own, in a group and alone; the other frames of the read are still all handled before the
+/// answers go out in one write.
+#[test]
+fn every_sync_of_one_read_gets_its_synchronous_tpdo() {
+    use drive::node::{AnyNode, run_group};
+    let frame = |id, data: &[u8]| CanFrame::standard(id, data).unwrap();
+    let sync = frame(0x080, &[]);
+    for grouped in [false, true] {
+        let build = |kind: DeviceKind, id| {
+            kind.build(&NodeConfig { node_id: Some(id), ..NodeConfig::default() }, &DefaultApps).unwrap()
+        };
+        let mut nodes = vec![build(DeviceKind::Drvi, 1)];
+        if grouped {
+            nodes.push(build(DeviceKind::Akd, 2));
+        }
+        let sent = Arc::new(std::sync::Mutex::new(Vec::new()));
+        let mut bus = Reads {
+            reads: [
+                // TPDO 1 (181h, statusword) sent after every SYNC (1800h sub 2 = 1), started.
+                vec![frame(0x601, &[0x2F, 0x00, 0x18, 0x02, 0x01, 0, 0, 0])],
+                vec![frame(0x000, &[0x01, 0x01])],
+                vec![sync, sync, sync],
+                vec![sync, frame(0x601, &[0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0]), sync],
+                vec![frame(0x601, &[0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0]), sync, sync],
+            ]
+            .into(),
+            held: Default::default(),
+            sent: Arc::clone(&sent),
+        };
+        let stop = AtomicBool::new(false);
+        let mut group: Vec<&mut dyn AnyNode> = nodes.iter_mut().map(|n| &mut **n as &mut dyn AnyNode).collect();
+        let end = run_group(&mut group, &mut bus, &MonotonicClock::new(), &stop);
+        assert!(matches!(end, Err(TransportError::Closed)), "{end:?}");
+        let sent = sent.lock().unwrap();
+        let ids: Vec<u32> =
+            sent.iter().map(|f| f.id()).filter(|id| *id != 0x702 && *id != 0x182 && *id != 0x282).collect();
+        assert_eq!(
+            ids,
+            [0x701, 0x581, 0x181, 0x181, 0x181, 0x181, 0x581, 0x181, 0x581, 0x181, 0x181],
+            "grouped {grouped}: {sent:?}"
+        );
+    }
+}

@@ -5,7 +5,7 @@
 use std::time::Duration;
 
 use od_bus::tokio::{Bus, LinkState};
-use od_bus::{CanFrame, Endpoint, MemoryBus, TransportError};
+use od_bus::{CanFrame, ControllerState, Endpoint, MemoryBus, TransportError};
 
 fn frame(id: u32, data: &[u8]) -> CanFrame {
     CanFrame::standard(id, data).unwrap()
@@ -135,4 +135,31 @@ async fn a_bad_address_is_refused_naming_the_accepted_forms() {
     let err = Bus::open("mem://a b").await.unwrap_err();
     assert!(matches!(err, TransportError::Address(_)), "{err:?}");
     assert!(err.to_string().contains("socketcand://HOST:PORT/CHANNEL"), "{err}");
+}
+
+/// A memory bus has no controller: its state changes are only what a test reports, and every
+/// listener (on the bus or on either half) gets each of them, in order.
+#[tokio::test]
+async fn controller_state_changes_reach_every_listener_in_order() {
+    let bus = Bus::attach(&MemoryBus::new());
+    let mut on_bus = bus.controller().subscribe();
+    let (tx, rx) = bus.split();
+    let mut on_tx = tx.controller().subscribe();
+    let mut on_rx = rx.controller().subscribe();
+    let changes = [
+        ControllerState::ErrorWarning,
+        ControllerState::ErrorPassive,
+        ControllerState::BusOff,
+        ControllerState::Restarted,
+        ControllerState::ErrorActive,
+    ];
+    for state in changes {
+        rx.controller().report(state);
+    }
+    for listener in [&mut on_bus, &mut on_tx, &mut on_rx] {
+        for want in changes {
+            assert_eq!(listener.try_recv(), Ok(want));
+        }
+        assert!(listener.try_recv().is_err(), "nothing more");
+    }
 }

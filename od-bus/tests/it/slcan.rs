@@ -227,6 +227,7 @@ mod pty {
     async fn a_lawicel_adapter_is_polled_and_recovered_from_bus_off() {
         let (mut master, path) = adapter();
         let bus = Bus::open(&format!("slcan://{path}?bitrate=125000&listen-only")).await.unwrap();
+        let mut controller = bus.controller().subscribe();
         expect(&mut master, b"C\rS4\rM1\rL\rO\r");
         // Its answers: C, S4 done, M1 refused, L done, O refused (already open).
         master.write_all(b"\r\r\x07\r\x07").unwrap();
@@ -240,6 +241,11 @@ mod pty {
             link_becomes(&bus, |s| matches!(s, LinkState::Up { reconnects: 1 })).await,
             LinkState::Up { reconnects: 1 }
         );
+        // The controller's listeners hear the bus-off and the restart, in order.
+        for want in [od_bus::ControllerState::BusOff, od_bus::ControllerState::Restarted] {
+            let got = tokio::time::timeout(Duration::from_secs(5), controller.recv()).await;
+            assert_eq!(got.expect("a controller state change within 5 s").unwrap(), want);
+        }
     }
 
     /// The adapter unplugged (the terminal closed) and plugged in again under the same name:

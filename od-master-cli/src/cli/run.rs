@@ -108,3 +108,31 @@ pub fn to_json(event: &SupervisorEvent) -> serde_json::Value {
         other => json!({ "event": "other", "text": other.to_string() }),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The bus's own states as `--json` prints them (SocketCAN's controller states and
+    /// socketcand's link), each with its name, the link down with its reason.
+    #[test]
+    fn bus_states_as_json_lines() {
+        let table = [
+            (BusState::ErrorWarning, json!({ "event": "bus", "state": "error_warning", "reason": null })),
+            (BusState::ErrorPassive, json!({ "event": "bus", "state": "error_passive", "reason": null })),
+            (BusState::BusOff, json!({ "event": "bus", "state": "bus_off", "reason": null })),
+            (BusState::Restarted, json!({ "event": "bus", "state": "restarted", "reason": null })),
+            (BusState::ErrorActive, json!({ "event": "bus", "state": "error_active", "reason": null })),
+            (
+                BusState::LinkDown { reason: "connection reset".into() },
+                json!({ "event": "bus", "state": "link_down", "reason": "connection reset" }),
+            ),
+            (BusState::LinkUp, json!({ "event": "bus", "state": "link_up", "reason": null })),
+        ];
+        for (state, want) in table {
+            assert_eq!(to_json(&SupervisorEvent::Bus(state.clone())), want, "{state:?}");
+        }
+        // And in words: what the controller did.
+        assert_eq!(SupervisorEvent::Bus(BusState::BusOff).to_string(), "bus-off: the controller is off the bus");
+    }
+}

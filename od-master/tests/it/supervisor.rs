@@ -541,6 +541,120 @@ async fn re_enable_after_reboot_brings_the_drive_back_once_reconfigured() {
     r.stop().await;
 }
 
+/// The CAN controller's state changes, as a SocketCAN bus reports them from the kernel's error
+/// frames (here played on the memory bus's controller, which has none of its own): each one
+/// reported by the supervisor in order; after the restart every node read back, and a node
+/// whose configuration changed while the master was off the bus configured again.
+#[tokio::test(start_paused = true)]
+async fn controller_states_are_reported_and_after_bus_off_every_node_is_read_back() {
+    use od_bus::ControllerState;
+    use od_master::supervisor::BusState;
+    let mut sim = Sim::new();
+    for &(kind, id) in &EXAMPLE {
+        sim.add(node(kind, id));
+    }
+    let link = od_bus::tokio::Bus::attach(sim.bus());
+    let controller = link.controller();
+    let bus = Bus::start(link, Config::default());
+    let sim = Arc::new(Mutex::new(sim));
+    // The simulation in step with tokio's paused clock.
+    let follow = {
+        let sim = Arc::clone(&sim);
+        tokio::spawn(async move {
+            let start = tokio::time::Instant::now();
+            loop {
+                {
+                    let mut sim = sim.lock().unwrap();
+                    let t = start.elapsed().as_micros() as u64;
+                    let now = sim.now();
+                    sim.advance(t.saturating_sub(now));
+                }
+                tokio::time::sleep(STEP).await;
+            }
+        })
+    };
+    pass(Duration::from_millis(10)).await;
+    let network = example_with("");
+    let mut r = supervise(&bus, network.clone());
+    boot_all(&mut r).await;
+    pass(Duration::from_millis(50)).await;
+    while r.events.try_recv().is_ok() {}
+
+    for (state, want) in [
+        (ControllerState::ErrorWarning, BusState::ErrorWarning),
+        (ControllerState::ErrorPassive, BusState::ErrorPassive),
+        (ControllerState::BusOff, BusState::BusOff),
+    ] {
+        controller.report(state);
+        let (e, before) = r.expect(Duration::from_millis(100), |e| matches!(e, SupervisorEvent::Bus(_))).await;
+        assert_eq!(e, SupervisorEvent::Bus(want), "{before:#?}");
+        assert!(before.is_empty(), "{before:#?}");
+    }
+    // While the master is off the bus, y_axis loses its heartbeat time (1017h back to 0).
+    let heartbeat = network.nodes[1].plan.writes.iter().find(|w| w.index == 0x1017).expect("y_axis 1017h write");
+    bus.node(3).unwrap().write_bytes(0x1017, 0, &[0, 0]).await.unwrap();
+    controller.report(ControllerState::Restarted);
+    let (e, _) = r.expect(Duration::from_millis(100), |e| matches!(e, SupervisorEvent::Bus(_))).await;
+    assert_eq!(e, SupervisorEvent::Bus(BusState::Restarted));
+    let mut verified = std::collections::BTreeSet::new();
+    let mut reconfigured = std::collections::BTreeSet::new();
+    let mut seen = Vec::new();
+    while verified.len() + reconfigured.len() < 3 {
+        let (e, before) = r
+            .expect(Duration::from_secs(2), |e| {
+                matches!(e, SupervisorEvent::Reconfigured { .. } | SupervisorEvent::Verified { .. })
+            })
+            .await;
+        seen.extend(before);
+        match e {
+            SupervisorEvent::Verified { node, objects, .. } => {
+                assert_eq!(
+                    objects,
+                    network
+                        .nodes
+                        .iter()
+                        .find(|n| n.node_id == node)
+                        .unwrap()
+                        .plan
+                        .writes
+                        .iter()
+                        .map(|w| (w.index, w.sub))
+                        .collect::<std::collections::BTreeSet<_>>()
+                        .len()
+                );
+                verified.insert(node);
+            }
+            SupervisorEvent::Reconfigured { node, .. } => {
+                reconfigured.insert(node);
+            }
+            _ => unreachable!(),
+        }
+    }
+    assert_eq!(verified, [2, 4].into());
+    assert_eq!(reconfigured, [3].into());
+    // The one read back that differed is named with both values.
+    assert!(
+        seen.iter().any(|e| matches!(e, SupervisorEvent::BootFailed { node: 3, message, .. }
+            if message.contains("1017h") && message.contains("00 00") && message.contains(&hex(&heartbeat.data)))),
+        "{seen:#?}"
+    );
+    for n in &network.nodes {
+        od_master::supervisor::verify(&bus, n).await.unwrap_or_else(|e| panic!("{}: {e}", n.name));
+    }
+    controller.report(ControllerState::ErrorActive);
+    let (e, _) = r.expect(Duration::from_millis(100), |e| matches!(e, SupervisorEvent::Bus(_))).await;
+    assert_eq!(e, SupervisorEvent::Bus(BusState::ErrorActive));
+    // Back to error-active reads nothing back: only the restart does.
+    let after = r.during(Duration::from_millis(200)).await;
+    assert!(after.is_empty(), "{after:#?}");
+    r.stop().await;
+    follow.abort();
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02X}")).collect::<Vec<_>>().join(" ")
+}
+
 // Over TCP: the hub restarted while the network runs.
 
 /// Drives on a hub at `addr`, in real time, until `stop`.
