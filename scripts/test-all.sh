@@ -67,17 +67,20 @@ fi
 step "cargo fmt --check"
 cargo fmt --all -- --check
 
-# Lints with warnings denied, every crate and target (clippy is in rust-toolchain.toml).
+# Lints with warnings denied, every crate and target (clippy is in rust-toolchain.toml). The
+# targets are named rather than `--all-targets`, which also builds the test harness of a target
+# whose manifest says `test = false` (the ones without unit tests, such as the generated
+# dictionaries' crate: a second compile of 70,000 lines for no test).
 step "cargo clippy (workspace, all targets, warnings denied)"
-cargo clippy --workspace --all-targets --locked -- -D warnings
+cargo clippy --workspace --lib --bins --tests --benches --examples --locked -- -D warnings
 
-# One build profile only: `cargo test --all-targets` also compiles the benchmarks (in the test
-# profile) and runs each of them once as a smoke test.
+# One build profile only: the benchmarks are compiled in the test profile and each runs once as
+# a smoke test. Every target with tests (not `--all-targets`: see clippy's step).
 step "cargo test (workspace, all targets)"
 venv_ready
-cargo test --workspace --all-targets --locked --no-fail-fast
+cargo test --workspace --tests --benches --examples --locked --no-fail-fast
 
-# `--all-targets` leaves the doc tests out: the examples in the docs, the crates' READMEs among
+# These leave the doc tests out: the examples in the docs, the crates' READMEs among
 # them (each published crate's README is its front page).
 step "doc tests (workspace)"
 cargo test --workspace --doc --locked --no-fail-fast
