@@ -93,6 +93,30 @@ pub enum LoadError {
 }
 
 impl Network {
+    /// The LSS plan of the network ([`crate::lss::Lss::assign`]): for each node whose
+    /// description gives a serial number, the identity to select (the device description's
+    /// vendor-ID, product code and revision number, and that serial number) and its node-ID, in
+    /// the order of the description. (Here rather than in `lss`, which `boot` uses: no import
+    /// circle.)
+    pub fn lss_plan(&self) -> Vec<(crate::lss::Identity, u8)> {
+        self.nodes
+            .iter()
+            .filter_map(|n| {
+                let id = &n.plan.identity;
+                let serial = n.serial?;
+                Some((
+                    crate::lss::Identity {
+                        vendor: id.vendor_id,
+                        product: id.product_code,
+                        revision: id.revision,
+                        serial,
+                    },
+                    n.node_id,
+                ))
+            })
+            .collect()
+    }
+
     /// A network from files: one network description (`.toml`), or DCFs.
     pub fn load(paths: &[PathBuf]) -> Result<Self, LoadError> {
         match paths {

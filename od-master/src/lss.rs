@@ -484,21 +484,3 @@ pub struct Commissioning {
     /// may be missing from `unknown`); the assignments above stand.
     pub scan_error: Option<Error>,
 }
-
-/// The LSS plan of a network: for each node whose description gives a serial number, the
-/// identity to select (the device description's vendor-ID, product code and revision number,
-/// and that serial number) and its node-ID, in the order of the description.
-pub fn plan(network: &crate::Network) -> Vec<(Identity, u8)> {
-    network
-        .nodes
-        .iter()
-        .filter_map(|n| {
-            let id = &n.plan.identity;
-            let serial = n.serial?;
-            Some((
-                Identity { vendor: id.vendor_id, product: id.product_code, revision: id.revision, serial },
-                n.node_id,
-            ))
-        })
-        .collect()
-}

@@ -224,7 +224,7 @@ pub async fn run(bus: &Bus, args: LssArgs, eds: Option<&eds::Model>, json: bool)
         }
         LssCmd::Assign { network } => {
             let net = Network::load(std::slice::from_ref(&network)).map_err(|e| (2, e.to_string()))?;
-            let plan = lss::plan(&net);
+            let plan = net.lss_plan();
             if plan.is_empty() {
                 return Err((2, format!("{}: no node has a `serial`: nothing to assign", network.display())));
             }

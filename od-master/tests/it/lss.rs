@@ -77,7 +77,7 @@ fn unconfigured(dir: &Path) -> Net {
 async fn three_drives_without_node_id_are_found_assigned_and_boot_after_a_power_cycle() {
     let dir = state_dir("three");
     let network = example_with_serials();
-    let plan = lss::plan(&network);
+    let plan = network.lss_plan();
     assert_eq!(plan.iter().map(|p| (p.0.serial, p.1)).collect::<Vec<_>>(), [(1001, 2), (1002, 3), (1003, 4)]);
     {
         let n = unconfigured(&dir);
@@ -127,7 +127,7 @@ async fn three_drives_all_at_node_1_unconfigure_all_then_assign() {
     session.unconfigure_all().await.unwrap();
     pass(Duration::from_millis(5)).await;
     assert_eq!(active_ids(&n), [None, None, None]);
-    let report = session.assign(&lss::plan(&network)).await.unwrap();
+    let report = session.assign(&network.lss_plan()).await.unwrap();
     assert_eq!(report.assigned.len(), 3, "{report:?}");
     pass(Duration::from_millis(5)).await;
     assert_eq!(active_ids(&n), [Some(2), Some(3), Some(4)]);
@@ -145,7 +145,7 @@ async fn unknown_devices_are_listed_missing_ones_reported() {
     pass(Duration::from_millis(20)).await;
     let mut session = Lss::new(&n.bus);
     session.set_timeout(Duration::from_millis(5));
-    let report = session.assign(&lss::plan(&network)).await.unwrap();
+    let report = session.assign(&network.lss_plan()).await.unwrap();
     assert_eq!(report.assigned.iter().map(|a| (a.0.serial, a.1)).collect::<Vec<_>>(), [(1001, 2)]);
     assert_eq!(report.unknown.iter().map(|i| i.serial).collect::<Vec<_>>(), [77]);
     assert_eq!(report.missing.iter().map(|m| (m.0.serial, m.1)).collect::<Vec<_>>(), [(1002, 3), (1003, 4)]);
