@@ -75,10 +75,14 @@ step "cargo clippy (workspace, all targets, warnings denied)"
 cargo clippy --workspace --lib --bins --tests --benches --examples --locked -- -D warnings
 
 # One build profile only: the benchmarks are compiled in the test profile and each runs once as
-# a smoke test. Every target with tests (not `--all-targets`: see clippy's step).
-step "cargo test (workspace, all targets)"
+# a smoke test. Every target with tests (not `--all-targets`: see clippy's step). Built by cargo
+# once, then run as `cargo test` runs them, but in two lanes side by side (scripts/run-tests.py:
+# cargo runs one binary at a time, which left a core idle for most of this step).
+step "cargo test (workspace, all targets): build, then run in two lanes"
 venv_ready
-cargo test --workspace --tests --benches --examples --locked --no-fail-fast
+tests_json=$(mktemp)
+cargo test --workspace --tests --benches --examples --locked --no-run --message-format=json-render-diagnostics >"$tests_json"
+"$PYTHON" scripts/run-tests.py <"$tests_json"
 
 # These leave the doc tests out: the examples in the docs, the crates' READMEs among
 # them (each published crate's README is its front page).

@@ -1,0 +1,114 @@
+#!/usr/bin/env python3
+"""Runs the workspace's test binaries, built once by cargo, in two lanes side by side.
+
+`cargo test` runs one test binary at a time. On the project's 2-core machines that left a
+core idle for most of the Rust tests: the longest binaries (the code generator's corpus
+compile tests, the compile-fail tests, odgen's mutation test) each keep about one core busy,
+while the simulated drives' tests mostly wait on sockets and timers. This script takes the
+binaries that `cargo test --no-run --message-format=json` built (its standard input), and
+runs them as `cargo test` does (in the package's directory, with cargo's variables), in two
+lanes: one for the packages whose tests are CPU-bound and never time-sensitive, one for the
+rest, in cargo's order. Each binary's output is printed whole when it ends; the exit code is
+non-zero when any binary failed, and the failed ones are named at the end.
+
+Usage: cargo test ... --no-run --message-format=json | scripts/run-tests.py
+"""
+
+import json
+import os
+import subprocess
+import sys
+import threading
+import time
+
+# Packages whose tests are CPU-bound (generation, compiling, parsing, fuzzing) and use no
+# clock of the wall: they can share the machine with anything. Longest first.
+CPU_LANE = ["od-codegen", "od-macros", "odgen", "canopen-eds"]
+
+
+def package_name(package_id, manifest_path):
+    # path+file:///work/main/eds#canopen-eds@0.1.0, or path+file:///work/main/od-sidecar#0.1.0
+    tail = package_id.rsplit("#", 1)[-1]
+    if "@" in tail:
+        return tail.split("@", 1)[0], tail.split("@", 1)[1]
+    return os.path.basename(os.path.dirname(manifest_path)), tail
+
+
+def main():
+    binaries = []
+    for line in sys.stdin:
+        line = line.strip()
+        if not line.startswith("{"):
+            continue
+        m = json.loads(line)
+        if m.get("reason") != "compiler-artifact" or not m.get("executable") or not m["profile"]["test"]:
+            continue
+        name, version = package_name(m["package_id"], m["manifest_path"])
+        binaries.append(
+            {
+                "package": name,
+                "version": version,
+                "manifest": m["manifest_path"],
+                "exe": m["executable"],
+                "kind": m["target"]["kind"][0],
+                "target": m["target"]["name"],
+                "src": os.path.relpath(m["target"]["src_path"], os.path.dirname(m["manifest_path"])),
+            }
+        )
+    if not binaries:
+        print("run-tests.py: cargo built no test binary", file=sys.stderr)
+        return 1
+
+    cargo = os.environ.get("CARGO") or subprocess.run(
+        ["rustup", "which", "cargo"], capture_output=True, text=True
+    ).stdout.strip() or "cargo"
+    sysroot = subprocess.run(["rustc", "--print", "sysroot"], capture_output=True, text=True).stdout.strip()
+
+    cpu = sorted((b for b in binaries if b["package"] in CPU_LANE), key=lambda b: CPU_LANE.index(b["package"]))
+    rest = [b for b in binaries if b["package"] not in CPU_LANE]
+    lock = threading.Lock()
+    failed = []
+
+    def run(b):
+        directory = os.path.dirname(b["manifest"])
+        env = dict(os.environ)
+        env.update(
+            CARGO=cargo,
+            CARGO_MANIFEST_DIR=directory,
+            CARGO_MANIFEST_PATH=b["manifest"],
+            CARGO_PKG_NAME=b["package"],
+            CARGO_PKG_VERSION=b["version"],
+            CARGO_CRATE_NAME=b["target"].replace("-", "_"),
+            LD_LIBRARY_PATH=os.pathsep.join(
+                p for p in [os.path.dirname(b["exe"]), os.path.join(sysroot, "lib"), env.get("LD_LIBRARY_PATH", "")] if p
+            ),
+        )
+        started = time.monotonic()
+        out = subprocess.run([b["exe"]], cwd=directory, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+        took = time.monotonic() - started
+        kind = "unittests " if b["kind"] in ("lib", "bin", "proc-macro") else ""
+        with lock:
+            sys.stdout.write(f"     Running {kind}{b['src']} ({os.path.relpath(b['exe'])}) [{b['package']}, {took:.1f} s]\n")
+            sys.stdout.write(out.stdout.decode("utf-8", "replace"))
+            sys.stdout.flush()
+            if out.returncode != 0:
+                failed.append(f"{b['package']} {kind}{b['src']} (exit {out.returncode})")
+
+    def lane(items):
+        for b in items:
+            run(b)
+
+    threads = [threading.Thread(target=lane, args=(items,)) for items in (cpu, rest)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    print(f"\n{len(binaries)} test binaries ran ({len(cpu)} in the CPU lane, {len(rest)} in the other)")
+    if failed:
+        print("failed:\n  " + "\n  ".join(failed))
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
