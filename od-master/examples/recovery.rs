@@ -164,7 +164,7 @@ struct Unanswered {
 
 /// TPDO 2 (one a SYNC: 1 ms each) over which the least count is the settled one.
 const SETTLE: usize = 50;
-/// Frames kept to show where a SYNC in flight was forgiven.
+/// Frames kept to show where a SYNC in flight was forgiven, or a TPDO 2 not counted.
 const CONTEXT: usize = 24;
 /// Such cases shown at most.
 const SHOWN: usize = 3;
@@ -180,6 +180,12 @@ struct HubCount {
     in_flight: i64,
     /// TPDO 2 right after a drive's boot-up answering a SYNC of its configuration time.
     early: i64,
+}
+
+fn show(frames: impl Iterator<Item = (Duration, od_bus::CanFrame)>) {
+    for (at, f) in frames {
+        println!("  {:>12.3} ms  {:03X}  {:02X?}", at.as_secs_f64() * 1e3, f.id(), f.data());
+    }
 }
 
 async fn count_in_hub_order(addr: String, nodes: Vec<u8>) -> HubCount {
@@ -201,11 +207,19 @@ async fn count_in_hub_order(addr: String, nodes: Vec<u8>) -> HubCount {
             0x080 => per_node.values_mut().filter(|u| !u.rebooting).for_each(|u| u.owed += 1),
             0x7FF => break,
             id if id & !0x7F == 0x280 => {
-                if let Some(u) = node(0x280).and_then(|n| per_node.get_mut(&n)) {
+                if let Some((n, u)) = node(0x280).and_then(|n| per_node.get_mut(&n).map(|u| (n, u))) {
                     if std::mem::take(&mut u.rebooting) {
                         u.owed = u.floor;
                     } else if u.owed - 1 < u.floor {
                         count.early += 1;
+                        if shown < SHOWN {
+                            shown += 1;
+                            println!(
+                                "node {n}'s TPDO 2 answers a SYNC that came before its first TPDO 2 after its \
+                                 boot-up (not counted); the hub's frames up to it:"
+                            );
+                            show(recent.iter().copied());
+                        }
                     } else {
                         u.owed -= 1;
                     }
@@ -231,9 +245,7 @@ async fn count_in_hub_order(addr: String, nodes: Vec<u8>) -> HubCount {
                              (it went off), forgiven; the hub's frames up to that TPDO 2:",
                             at_last - settled
                         );
-                        for (at, f) in frames {
-                            println!("  {:>12.3} ms  {:03X}  {:02X?}", at.as_secs_f64() * 1e3, f.id(), f.data());
-                        }
+                        show(frames.into_iter());
                     }
                     u.owed = settled;
                     u.floor = settled;
