@@ -137,49 +137,128 @@ impl Rng {
 }
 
 /// Every SYNC, TPDO 2 and boot-up in the hub's order, from a connection of its own: for each
-/// drive, the SYNCs it has not answered with its TPDO 2. A boot-up forgives the SYNCs that came
-/// since its last TPDO 2 (the drive was off), and nothing counts for it until its first TPDO 2
-/// after (it is being configured); a SYNC left unanswered at any other time stays counted.
+/// drive, the SYNCs it has not answered with its TPDO 2.
+///
+/// A boot-up forgives the SYNCs the drive could not answer because it was off: those since its
+/// last TPDO 2, and also those in flight at that TPDO 2 — SYNCs that reached the hub after the
+/// SYNC it answered but before its answer (frames of the drives and of the master interleave
+/// in the hub as on a CAN bus; a drive that goes off right after leaves such a SYNC
+/// unanswered). What was in flight is what the count held above its least value right after
+/// one of its last [`SETTLE`] TPDO 2. Nothing counts for the drive from its boot-up to its
+/// first TPDO 2 after (it is being configured), and no TPDO 2 brings its count below where the
+/// boot-up left it (such a TPDO 2 answers a SYNC of that time, not counted). A SYNC left
+/// unanswered at any other time stays counted.
 #[derive(Default)]
 struct Unanswered {
     /// SYNCs not answered yet.
     owed: i64,
-    /// `owed` right after its last TPDO 2.
-    at_last: i64,
+    /// `owed` right after each of its last [`SETTLE`] TPDO 2.
+    after: std::collections::VecDeque<i64>,
+    /// Where its last boot-up left `owed`.
+    floor: i64,
     /// Between its boot-up and its first TPDO 2.
     rebooting: bool,
+    /// The hub's frames up to its last TPDO 2, when a SYNC was in flight at it.
+    overtaken: Option<Vec<(Duration, od_bus::CanFrame)>>,
 }
 
-async fn count_in_hub_order(addr: String, nodes: Vec<u8>) -> (BTreeMap<u8, i64>, u64) {
+/// TPDO 2 (one a SYNC: 1 ms each) over which the least count is the settled one.
+const SETTLE: usize = 50;
+/// Frames kept to show where a SYNC in flight was forgiven, or a TPDO 2 not counted.
+const CONTEXT: usize = 24;
+/// Such cases shown at most.
+const SHOWN: usize = 3;
+
+/// What [`count_in_hub_order`] found.
+#[derive(Debug, Default)]
+struct HubCount {
+    /// SYNCs not answered, per drive.
+    unanswered: BTreeMap<u8, i64>,
+    /// Frames the hub dropped for the counting connection.
+    lost: u64,
+    /// SYNCs in flight at a drive's last TPDO 2 before its power cycle, forgiven.
+    in_flight: i64,
+    /// TPDO 2 right after a drive's boot-up answering a SYNC of its configuration time.
+    early: i64,
+}
+
+fn show(frames: impl Iterator<Item = (Duration, od_bus::CanFrame)>) {
+    for (at, f) in frames {
+        println!("  {:>12.3} ms  {:03X}  {:02X?}", at.as_secs_f64() * 1e3, f.id(), f.data());
+    }
+}
+
+async fn count_in_hub_order(addr: String, nodes: Vec<u8>) -> HubCount {
     let mut link = od_bus::tokio::Bus::open(&addr).await.expect("a listening connection to the hub");
     let mut per_node: BTreeMap<u8, Unanswered> = nodes.iter().map(|n| (*n, Unanswered::default())).collect();
+    let start = Instant::now();
+    let mut recent: std::collections::VecDeque<(Duration, od_bus::CanFrame)> = Default::default();
+    let mut count = HubCount::default();
+    let mut shown = 0;
     loop {
         let Ok(frame) = link.recv().await else { break };
+        if recent.len() == CONTEXT {
+            recent.pop_front();
+        }
+        recent.push_back((start.elapsed(), frame));
         let node =
             |base: u32| u8::try_from(frame.id().wrapping_sub(base)).ok().and_then(|n| nodes.contains(&n).then_some(n));
         match frame.id() {
             0x080 => per_node.values_mut().filter(|u| !u.rebooting).for_each(|u| u.owed += 1),
             0x7FF => break,
             id if id & !0x7F == 0x280 => {
-                if let Some(u) = node(0x280).and_then(|n| per_node.get_mut(&n)) {
+                if let Some((n, u)) = node(0x280).and_then(|n| per_node.get_mut(&n).map(|u| (n, u))) {
                     if std::mem::take(&mut u.rebooting) {
-                        u.owed = u.at_last
+                        u.owed = u.floor;
+                    } else if u.owed - 1 < u.floor {
+                        count.early += 1;
+                        if shown < SHOWN {
+                            shown += 1;
+                            println!(
+                                "node {n}'s TPDO 2 answers a SYNC that came before its first TPDO 2 after its \
+                                 boot-up (not counted); the hub's frames up to it:"
+                            );
+                            show(recent.iter().copied());
+                        }
                     } else {
-                        u.owed -= 1
+                        u.owed -= 1;
                     }
-                    u.at_last = u.owed;
+                    if u.after.len() == SETTLE {
+                        u.after.pop_front();
+                    }
+                    u.after.push_back(u.owed);
+                    let least = u.after.iter().copied().min().unwrap_or(u.owed);
+                    u.overtaken = (u.owed > least).then(|| recent.iter().copied().collect());
                 }
             }
             id if id & !0x7F == 0x700 && frame.data() == [0] => {
-                if let Some(u) = node(0x700).and_then(|n| per_node.get_mut(&n)) {
-                    u.owed = u.at_last;
+                if let Some((n, u)) = node(0x700).and_then(|n| per_node.get_mut(&n).map(|u| (n, u))) {
+                    let at_last = u.after.back().copied().unwrap_or(u.owed);
+                    let settled = u.after.iter().copied().min().unwrap_or(u.owed);
+                    count.in_flight += at_last - settled;
+                    if let Some(frames) = u.overtaken.take()
+                        && shown < SHOWN
+                    {
+                        shown += 1;
+                        println!(
+                            "node {n}'s last TPDO 2 before its power cycle came after {} SYNC(s) it never answered \
+                             (it went off), forgiven; the hub's frames up to that TPDO 2:",
+                            at_last - settled
+                        );
+                        show(frames.into_iter());
+                    }
+                    u.owed = settled;
+                    u.floor = settled;
                     u.rebooting = true;
+                    u.after.clear();
                 }
             }
             _ => {}
         }
     }
-    (per_node.into_iter().map(|(n, u)| (n, u.owed)).collect(), link.lost())
+    count.unanswered = per_node.into_iter().map(|(n, u)| (n, u.owed)).collect();
+    count.lost = link.lost();
+    count
 }
 
 async fn soak(bus: Bus, addr: &str, injector: Injector, seconds: u64, min_s: f64, max_s: f64) {
@@ -247,9 +326,11 @@ async fn soak(bus: Bus, addr: &str, injector: Injector, seconds: u64, min_s: f64
     tokio::time::sleep(Duration::from_millis(200)).await;
     bus.send(od_bus::CanFrame::standard(0x7FF, &[]).unwrap()).await.ok();
     match tokio::time::timeout(Duration::from_secs(5), counter).await {
-        Ok(Ok((unanswered, lost))) => println!(
+        Ok(Ok(HubCount { unanswered, lost, in_flight, early })) => println!(
             "in the hub's order, whole soak: SYNCs not answered by TPDO 2, per drive, outside its own power cycles: \
-             {unanswered:?} (frames the hub dropped for this listener: {lost})"
+             {unanswered:?} (frames the hub dropped for this listener: {lost}; forgiven: {in_flight} SYNC(s) in flight \
+             at a drive's last TPDO 2 before its power cycle; {early} TPDO 2 after a boot-up answering a SYNC of the \
+             configuration time)"
         ),
         other => println!("the hub-order count did not end: {other:?}"),
     }

@@ -13,6 +13,7 @@ import json
 import os
 import queue
 import signal
+import struct
 import subprocess
 import threading
 import time
@@ -100,6 +101,10 @@ Y_OBJECTS = [
     (0x6060, 0),
 ]
 SYNC_PERIOD = 0.01
+# The drives not killed get a set-point before every SYNC, as from a CSP master: target position
+# (607Ah) in x_axis's RPDO 1 (controlword, target position) and z_axis's RPDO 2 (mode, target
+# position); each echoes its target in a TPDO 3 the test maps (607Ah, after every SYNC).
+SETPOINT_RPDO = {2: (0x202, lambda v: struct.pack("<Hi", 0, v)), 4: (0x304, lambda v: struct.pack("<bi", 3, v))}
 
 
 def test_a_drive_process_killed_and_started_again_is_configured_again_and_the_others_miss_no_sync(
@@ -109,7 +114,9 @@ def test_a_drive_process_killed_and_started_again_is_configured_again_and_the_ot
     frame more, its configuration gone with it) and started again: the supervisor reports it
     lost, then its boot-up, configures it with the same writes as at the first boot, and its
     PDO mappings, heartbeat time and mode read back as after the first boot. Meanwhile the
-    DRVI and the AKD answer every SYNC (the test's, every 10 ms) with their TPDO 2."""
+    DRVI and the AKD answer every SYNC (the test's, every 10 ms) with their TPDO 2, and take the
+    set-point (target position, by RPDO) sent before each SYNC: their TPDO 3 after each SYNC
+    echoes the set-point in force at that SYNC."""
     import canopen
 
     hub = start_drive_sim("hub", "--listen", "127.0.0.1:0", "--quiet")
@@ -141,6 +148,35 @@ def test_a_drive_process_killed_and_started_again_is_configured_again_and_the_ot
     def read_back():
         return {(i, s): bytes(y.sdo.upload(i, s)) for i, s in Y_OBJECTS}
 
+    # TPDO 3 of the drives not killed: their target position, after every SYNC (CiA 301's
+    # order: disabled, mapping emptied, filled, counted, transmission type, enabled).
+    def map_echo(node_id, eds):
+        node = network.add_node(node_id, str(ROOT / "devices" / eds))
+        cob = 0x380 + node_id
+        for index, sub, value, size in ((0x1802, 1, 0x80000000 | cob, 4), (0x1A02, 0, 0, 1),
+                                         (0x1A02, 1, 0x607A0020, 4), (0x1A02, 0, 1, 1),
+                                         (0x1802, 2, 1, 1), (0x1802, 1, cob, 4)):
+            node.sdo.download(index, sub, value.to_bytes(size, "little"))
+
+    # SYNC every 10 ms, each after a set-point to x and z (a new target each time); the
+    # set-points in force at each SYNC, in order.
+    in_force = {2: [], 4: []}
+    cycling = threading.Event()
+
+    def cycle():
+        k, at = 0, time.monotonic()
+        while cycling.is_set():
+            k += 1
+            for node_id, (cob, pack) in SETPOINT_RPDO.items():
+                value = (1 if node_id == 2 else -1) * (1000 + k)
+                network.send_message(cob, pack(value))
+                in_force[node_id].append(value)
+            network.send_message(0x080, b"")
+            at += SYNC_PERIOD
+            time.sleep(max(0.0, at - time.monotonic()))
+
+    cycler = threading.Thread(target=cycle, daemon=True)
+
     # Every frame on the bus, in the hub's order, from another connection.
     listener = can_bus(hub)
     frames = []
@@ -163,8 +199,11 @@ def test_a_drive_process_killed_and_started_again_is_configured_again_and_the_ot
         assert first[(0x1017, 0)] == (100).to_bytes(2, "little"), first
         assert first[(0x1A01, 0)] == bytes([2]), first
 
+        map_echo(2, "camozzi-drvi.eds")
+        map_echo(4, "kollmorgen-akd.eds")
         reader.start()
-        network.sync.start(SYNC_PERIOD)
+        cycling.set()
+        cycler.start()
         time.sleep(0.2)
         killed = drives.pop(3)
         killed.process.send_signal(signal.SIGKILL)
@@ -180,7 +219,8 @@ def test_a_drive_process_killed_and_started_again_is_configured_again_and_the_ot
         assert done["writes"] == booted[3]["writes"], (done, booted[3])
         assert not [e for e in between if e.get("node") in (2, 4)], between
         time.sleep(0.2)
-        network.sync.stop()
+        cycling.clear()
+        cycler.join(timeout=2)
         time.sleep(0.05)
         listening.clear()
         reader.join(timeout=2)
@@ -202,11 +242,19 @@ def test_a_drive_process_killed_and_started_again_is_configured_again_and_the_ot
             if window.count("282h") != 1 or window.count("284h") != 1:
                 odd.append((round(frames[a][2] - frames[syncs[0]][2], 4), window))
         assert answered == {0x282: len(syncs), 0x284: len(syncs)}, f"{answered} for {len(syncs)} SYNCs: {odd}"
+        # Every set-point taken: the n-th TPDO 3 of each carries the set-point sent before the
+        # n-th SYNC (the listener saw every SYNC the test sent: the same number).
+        assert len(syncs) == len(in_force[2]), (len(syncs), len(in_force[2]))
+        for node_id in (2, 4):
+            echoed = [struct.unpack("<i", data[:4])[0] for cob, data, _ in frames[syncs[0]:] if cob == 0x380 + node_id]
+            wrong = [(n, want, got) for n, (want, got) in enumerate(zip(in_force[node_id], echoed)) if want != got]
+            assert len(echoed) == len(syncs) and not wrong, \
+                f"node {node_id}: {len(echoed)} echoes for {len(syncs)} SYNCs; (SYNC, sent, echoed) differing: {wrong[:10]}"
         # The new process's boot-up went out on the bus.
         assert any(cob == 0x703 and data == b"\x00" for cob, data, _ in frames)
     finally:
         listening.clear()
-        network.sync.stop()
+        cycling.clear()
         proc.send_signal(signal.SIGINT)
         code = proc.wait(timeout=10)
     assert code == 0, proc.stderr.read()
