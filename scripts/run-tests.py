@@ -1,15 +1,16 @@
 #!/usr/bin/env python3
-"""Runs the workspace's test binaries, built once by cargo, in two lanes side by side.
+"""Runs the workspace's test binaries, built once by cargo, two at a time.
 
 `cargo test` runs one test binary at a time. On the project's 2-core machines that left a
 core idle for most of the Rust tests: the longest binaries (the code generator's corpus
 compile tests, the compile-fail tests, odgen's mutation test) each keep about one core busy,
 while the simulated drives' tests mostly wait on sockets and timers. This script takes the
 binaries that `cargo test --no-run --message-format=json` built (its standard input), and
-runs them as `cargo test` does (in the package's directory, with cargo's variables), in two
-lanes: one for the packages whose tests are CPU-bound and never time-sensitive, one for the
-rest, in cargo's order. Each binary's output is printed whole when it ends; the exit code is
-non-zero when any binary failed, and the failed ones are named at the end.
+runs them as `cargo test` does (in the package's directory, with cargo's variables), two at a
+time: the longest first (`LONGEST`, measured on a fresh clone), then the rest in cargo's order,
+each taken by whichever of the two runners is free. Each binary's output is printed whole when
+it ends; the exit code is non-zero when any binary failed, and the failed ones are named at the
+end.
 
 Usage: cargo test ... --no-run --message-format=json | scripts/run-tests.py
 """
@@ -21,9 +22,20 @@ import sys
 import threading
 import time
 
-# Packages whose tests are CPU-bound (generation, compiling, parsing, fuzzing) and use no
-# clock of the wall: they can share the machine with anything. Longest first.
-CPU_LANE = ["od-codegen", "od-macros", "odgen", "canopen-eds"]
+# The test binaries that take longest (package, target), longest first: seconds on a fresh
+# clone of a 2-core machine, 2026-12-06, two at a time: od-codegen's corpus compile tests 179,
+# odgen's mutation and memory tests 119, the trybuild project 81, drive's 80, eds's 42 and
+# 30, od-master's 27. Starting them first keeps the two runners busy to the end.
+LONGEST = [
+    ("od-codegen", "it"),
+    ("odgen", "it"),
+    ("od-macros", "ui"),
+    ("drive", "it"),
+    ("canopen-eds", "it"),
+    ("canopen-eds", "canopen_eds"),
+    ("od-master", "it"),
+]
+RUNNERS = 2
 
 
 def package_name(package_id, manifest_path):
@@ -64,8 +76,11 @@ def main():
     ).stdout.strip() or "cargo"
     sysroot = subprocess.run(["rustc", "--print", "sysroot"], capture_output=True, text=True).stdout.strip()
 
-    cpu = sorted((b for b in binaries if b["package"] in CPU_LANE), key=lambda b: CPU_LANE.index(b["package"]))
-    rest = [b for b in binaries if b["package"] not in CPU_LANE]
+    def rank(b):
+        key = (b["package"], b["target"])
+        return LONGEST.index(key) if key in LONGEST and b["kind"] in ("test", "lib") else len(LONGEST)
+
+    queue = sorted(binaries, key=rank)  # stable: the rest stay in cargo's order
     lock = threading.Lock()
     failed = []
 
@@ -94,16 +109,20 @@ def main():
             if out.returncode != 0:
                 failed.append(f"{b['package']} {kind}{b['src']} (exit {out.returncode})")
 
-    def lane(items):
-        for b in items:
+    def runner():
+        while True:
+            with lock:
+                if not queue:
+                    return
+                b = queue.pop(0)
             run(b)
 
-    threads = [threading.Thread(target=lane, args=(items,)) for items in (cpu, rest)]
+    threads = [threading.Thread(target=runner) for _ in range(RUNNERS)]
     for t in threads:
         t.start()
     for t in threads:
         t.join()
-    print(f"\n{len(binaries)} test binaries ran ({len(cpu)} in the CPU lane, {len(rest)} in the other)")
+    print(f"\n{len(binaries)} test binaries ran, {RUNNERS} at a time")
     if failed:
         print("failed:\n  " + "\n  ".join(failed))
         return 1

@@ -76,9 +76,9 @@ cargo clippy --workspace --lib --bins --tests --benches --examples --locked -- -
 
 # One build profile only: the benchmarks are compiled in the test profile and each runs once as
 # a smoke test. Every target with tests (not `--all-targets`: see clippy's step). Built by cargo
-# once, then run as `cargo test` runs them, but in two lanes side by side (scripts/run-tests.py:
+# once, then run as `cargo test` runs them, but two at a time, longest first (scripts/run-tests.py:
 # cargo runs one binary at a time, which left a core idle for most of this step).
-step "cargo test (workspace, all targets): build, then run in two lanes"
+step "cargo test (workspace, all targets): build, then run two at a time"
 venv_ready
 tests_json=$(mktemp)
 cargo test --workspace --tests --benches --examples --locked --no-run --message-format=json-render-diagnostics >"$tests_json"
