@@ -74,7 +74,16 @@ def main():
     cargo = os.environ.get("CARGO") or subprocess.run(
         ["rustup", "which", "cargo"], capture_output=True, text=True
     ).stdout.strip() or "cargo"
-    sysroot = subprocess.run(["rustc", "--print", "sysroot"], capture_output=True, text=True).stdout.strip()
+    # The toolchain cargo used (rust-toolchain.toml): a proc-macro crate's test harness links the
+    # standard library dynamically, from the sysroot's lib/rustlib/HOST/lib, as cargo tells the
+    # loader when it runs the binary itself.
+    rustc = subprocess.run(["rustup", "which", "rustc"], capture_output=True, text=True).stdout.strip() or "rustc"
+    sysroot = subprocess.run([rustc, "--print", "sysroot"], capture_output=True, text=True).stdout.strip()
+    host = next(
+        (l.split(":", 1)[1].strip() for l in subprocess.run([rustc, "-vV"], capture_output=True, text=True).stdout.splitlines() if l.startswith("host:")),
+        "",
+    )
+    rustlib = os.path.join(sysroot, "lib", "rustlib", host, "lib")
 
     def rank(b):
         key = (b["package"], b["target"])
@@ -95,7 +104,7 @@ def main():
             CARGO_PKG_VERSION=b["version"],
             CARGO_CRATE_NAME=b["target"].replace("-", "_"),
             LD_LIBRARY_PATH=os.pathsep.join(
-                p for p in [os.path.dirname(b["exe"]), os.path.join(sysroot, "lib"), env.get("LD_LIBRARY_PATH", "")] if p
+                p for p in [os.path.dirname(b["exe"]), rustlib, os.path.join(sysroot, "lib"), env.get("LD_LIBRARY_PATH", "")] if p
             ),
         )
         started = time.monotonic()
