@@ -49,6 +49,20 @@ pub enum State {
 }
 
 impl State {
+    /// The state's name as CiA 402 writes it ("Switch on disabled", "Operation enabled", ...).
+    pub const fn name(self) -> &'static str {
+        match self {
+            State::NotReadyToSwitchOn => "Not ready to switch on",
+            State::SwitchOnDisabled => "Switch on disabled",
+            State::ReadyToSwitchOn => "Ready to switch on",
+            State::SwitchedOn => "Switched on",
+            State::OperationEnabled => "Operation enabled",
+            State::QuickStopActive => "Quick stop active",
+            State::FaultReactionActive => "Fault reaction active",
+            State::Fault => "Fault",
+        }
+    }
+
     /// Statusword bits 0..=6 of this state (bit 4, voltage enabled, set whenever the power
     /// stage may carry voltage).
     pub const fn statusword_bits(self) -> u16 {

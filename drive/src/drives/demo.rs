@@ -113,17 +113,7 @@ fn sdo<T>(what: &str, r: Result<T, MasterError>) -> Result<T, DemoError> {
 }
 
 fn state_name(sw: u16) -> &'static str {
-    match State::from_statusword(sw) {
-        Some(State::NotReadyToSwitchOn) => "Not ready to switch on",
-        Some(State::SwitchOnDisabled) => "Switch on disabled",
-        Some(State::ReadyToSwitchOn) => "Ready to switch on",
-        Some(State::SwitchedOn) => "Switched on",
-        Some(State::OperationEnabled) => "Operation enabled",
-        Some(State::QuickStopActive) => "Quick stop active",
-        Some(State::FaultReactionActive) => "Fault reaction active",
-        Some(State::Fault) => "Fault",
-        None => "?",
-    }
+    State::from_statusword(sw).map_or("?", State::name)
 }
 
 impl Demo<'_> {

@@ -1145,17 +1145,7 @@ pub fn nmt_long(state: NmtState) -> &'static str {
 
 /// The CiA 402 state of a statusword, in words.
 pub fn state_name(status: u16) -> &'static str {
-    match State::from_statusword(status) {
-        Some(State::NotReadyToSwitchOn) => "Not ready to switch on",
-        Some(State::SwitchOnDisabled) => "Switch on disabled",
-        Some(State::ReadyToSwitchOn) => "Ready to switch on",
-        Some(State::SwitchedOn) => "Switched on",
-        Some(State::OperationEnabled) => "Operation enabled",
-        Some(State::QuickStopActive) => "Quick stop active",
-        Some(State::FaultReactionActive) => "Fault reaction active",
-        Some(State::Fault) => "Fault",
-        None => "?",
-    }
+    State::from_statusword(status).map_or("?", State::name)
 }
 
 /// The short name of a mode of operation (6060h/6061h).
