@@ -767,12 +767,18 @@ impl Session<'_> {
                 self.refuse("open a channel first".into())
             }
             (Message::RawMode, Mode::Bcm) => {
-                // `< ok >` goes out before the first frame: python-can waits for it alone.
+                // `< ok >` goes out before the first frame (python-can waits for it alone) and
+                // only once the client is on the bus: python-can returns from its constructor on
+                // it, and a frame another client sends right then must reach this one. Held
+                // until the join, the reply cannot reach the client while this thread is
+                // preempted between the two.
+                self.connection.queue.hold();
                 self.connection.reply(Message::Ok);
                 self.connection.pause();
                 if let Some(channel) = &self.channel {
                     channel.join(self.connection.id, Arc::clone(self.connection) as Arc<dyn Sink>);
                 }
+                self.connection.queue.release();
                 self.mode = Mode::Raw;
                 self.hub.emit(&HubEvent::RawMode { client: self.connection.id, peer: self.connection.peer });
             }

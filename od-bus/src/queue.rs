@@ -38,6 +38,9 @@ struct State<T> {
     /// more: it is still handing them on, so nothing may overtake them
     /// ([`BoundedQueue::push_or_hand`]).
     working: bool,
+    /// [`BoundedQueue::hold`]: the consumer of `drain_blocking` takes nothing until
+    /// [`BoundedQueue::release`], and nothing is handed past the queue.
+    held: bool,
 }
 
 /// Bounded multi-producer FIFO with blocking, timed receive.
@@ -57,6 +60,7 @@ impl<T> BoundedQueue<T> {
                 closed: false,
                 waiters: 0,
                 working: false,
+                held: false,
             }),
             ready: Condvar::new(),
             capacity,
@@ -98,7 +102,7 @@ impl<T> BoundedQueue<T> {
         if state.closed {
             return Err(PushError::Closed);
         }
-        let item = if state.items.is_empty() && !state.working {
+        let item = if state.items.is_empty() && !state.working && !state.held {
             match direct(item) {
                 None => return Ok(()),
                 Some(rest) => rest,
@@ -178,7 +182,7 @@ impl<T> BoundedQueue<T> {
                 state.items.clear();
                 return Err(Closed);
             }
-            if !state.items.is_empty() {
+            if !state.items.is_empty() && !state.held {
                 let take = state.items.len().min(max.max(1));
                 out.extend(state.items.drain(..take));
                 state.working = true;
@@ -188,6 +192,25 @@ impl<T> BoundedQueue<T> {
             state.waiters += 1;
             state = self.ready.wait(state).unwrap_or_else(PoisonError::into_inner);
             state.waiters -= 1;
+        }
+    }
+
+    /// Keeps what is queued from here on from the consumer of
+    /// [`drain_blocking`](BoundedQueue::drain_blocking) (and from `push_or_hand`'s direct path)
+    /// until [`release`](BoundedQueue::release): a reply queued while held goes out only once
+    /// what it announces is true.
+    pub(crate) fn hold(&self) {
+        lock(&self.state).held = true;
+    }
+
+    /// Ends a [`hold`](BoundedQueue::hold), waking the consumer if items wait.
+    pub(crate) fn release(&self) {
+        let mut state = lock(&self.state);
+        state.held = false;
+        let wake = state.waiters > 0 && !state.items.is_empty();
+        drop(state);
+        if wake {
+            self.ready.notify_one();
         }
     }
 
@@ -278,6 +301,30 @@ mod tests {
         assert_eq!(consumer.join().unwrap(), Ok(vec![7]));
         waiting.close();
         assert_eq!(waiting.push_or_hand(8, |_| unreachable!()), Err(PushError::Closed));
+    }
+
+    #[test]
+    fn a_held_queue_gives_nothing_to_its_consumer_and_hands_nothing_past_it() {
+        let queue = Arc::new(BoundedQueue::new(8));
+        queue.hold();
+        queue.push(1).unwrap();
+        // Empty of earlier items and the consumer idle, but held: queued, not handed over.
+        queue.push_or_hand(2, |_| unreachable!()).unwrap();
+        let consumer = {
+            let queue = Arc::clone(&queue);
+            std::thread::spawn(move || {
+                let mut out = Vec::new();
+                queue.drain_blocking(&mut out, 10).map(|()| out)
+            })
+        };
+        // The consumer waits although items are queued.
+        while lock(&queue.state).waiters == 0 {
+            std::thread::yield_now();
+        }
+        queue.push(3).unwrap();
+        assert!(!consumer.is_finished());
+        queue.release();
+        assert_eq!(consumer.join().unwrap(), Ok(vec![1, 2, 3]));
     }
 
     #[test]

@@ -841,3 +841,22 @@ fn a_lone_channel_beside_busy_ones_is_reported() {
         "{lone:?}"
     );
 }
+
+#[test]
+fn a_frame_sent_as_soon_as_a_client_is_in_raw_mode_reaches_it() {
+    // A client that has its `< ok >` to `< rawmode >` is on the bus: python-can returns from its
+    // constructor then, and a test (or a master) sends at once. The hub used to queue the reply
+    // before the client joined the channel, so a frame relayed in between was lost to it when
+    // its reader thread was preempted there (seen in CI as a burst's first frames missing).
+    // No pause after the reply (it only delays the frames), so attempts are quick.
+    let hub =
+        Hub::bind("127.0.0.1:0", HubConfig { reply_pause: Duration::ZERO, ..HubConfig::default().quiet() }).unwrap();
+    let mut device = hub.attach("can0").unwrap();
+    for attempt in 0..2000u32 {
+        let mut client = TextClient::raw(hub.local_addr(), "can0");
+        let frame = CanFrame::standard(0x181, &attempt.to_le_bytes()).unwrap();
+        device.send(frame).unwrap();
+        let message = client.next();
+        assert!(message.starts_with("< frame 181 "), "attempt {attempt}: {message}");
+    }
+}
