@@ -282,6 +282,24 @@ def device_eds():
     return dict(DEVICE_EDS)
 
 
+def node402(node_id, eds):
+    """python-canopen's CiA 402 node, with its waits sized for a loaded test machine.
+
+    BaseNode402 gives a periodic TPDO 0.2 s to arrive after each command (TIMEOUT_CHECK_TPDO)
+    and a state change 0.8 s: with six test files and their simulators sharing two cores, a
+    TPDO on a 50-100 ms event timer came 0.2 s late now and then ("Timeout waiting for updated
+    statusword"). A drive that stops sending still fails each wait, only later."""
+    import canopen
+
+    node = canopen.BaseNode402(node_id, str(eds))
+    node.TIMEOUT_CHECK_TPDO = 1.0
+    node.TIMEOUT_SWITCH_OP_MODE = 2.0
+    node.TIMEOUT_SWITCH_STATE_SINGLE = 1.0
+    node.TIMEOUT_SWITCH_STATE_FINAL = 3.0
+    node.TIMEOUT_RESET_FAULT = 1.0
+    return node
+
+
 def _wait_until(predicate, timeout=5.0, interval=0.01, what=None):
     deadline = time.monotonic() + timeout
     while True:

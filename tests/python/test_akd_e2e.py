@@ -28,6 +28,7 @@ from fractions import Fraction
 from pathlib import Path
 
 import pytest
+from conftest import node402
 
 NODE = 5
 ROOT = Path(__file__).resolve().parents[2]
@@ -39,9 +40,7 @@ def start(start_drive_sim, *extra):
 
 
 def akd_node(network, device_eds):
-    import canopen
-
-    node = canopen.BaseNode402(NODE, str(device_eds["akd"]))
+    node = node402(NODE, device_eds["akd"])
     network.add_node(node)
     return node
 

@@ -5,6 +5,7 @@ each test does what the run did and checks what the drive must do instead. Also 
 import time
 
 import pytest
+from conftest import node402
 
 NODE = 6
 # 6502h as BaseNode402 reads it, where the drive's own is not what it supports (the DRVI's
@@ -15,11 +16,9 @@ MODES = {"drvi": 0x0001 | 0x0004 | 0x0008 | 0x0020}
 def start_node(start_drive_sim, canopen_network, device_eds, kind, *extra):
     """A started drive of `kind` (NMT operational) with BaseNode402 following its TPDO1 (an
     event timer of 50 ms keeps it fresh)."""
-    import canopen
-
     sim = start_drive_sim("run", "--device", kind, "--node-id", NODE, *extra, "--listen", "127.0.0.1:0")
     network = canopen_network(sim)
-    node = canopen.BaseNode402(NODE, str(device_eds[kind]))
+    node = node402(NODE, device_eds[kind])
     network.add_node(node)
     if kind in MODES:
         node._op_mode_support = MODES[kind]

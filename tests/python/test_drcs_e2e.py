@@ -19,6 +19,7 @@ from fractions import Fraction
 from pathlib import Path
 
 import pytest
+from conftest import node402
 
 NODE = 3
 ROOT = Path(__file__).resolve().parents[2]
@@ -32,9 +33,7 @@ def start(start_drive_sim, *extra):
 
 
 def drcs_node(network, device_eds):
-    import canopen
-
-    node = canopen.BaseNode402(NODE, str(device_eds["drcs"]))
+    node = node402(NODE, device_eds["drcs"])
     network.add_node(node)
     return node
 

@@ -19,7 +19,7 @@ from fractions import Fraction
 
 import pytest
 
-from conftest import ROOT
+from conftest import ROOT, node402
 
 NODE = 5
 # python-canopen asks 6502h for the supported modes; the DRVI has no 6502h (Table 6.14), so the
@@ -76,13 +76,12 @@ def start(start_drive_sim, canopen_network, device_eds, *extra, machine="drvi-ac
     """A DRVI on `machine`: these tests home on the proximity and run into the end stops of
     the actuator preset (the DRVI alone starts as a bare motor, `free`)."""
     import canopen
-    from canopen.profiles.p402 import BaseNode402
 
     sim = start_drive_sim(
         "run", "--device", "drvi", "--node-id", NODE, "--machine", machine, *extra, "--listen", "127.0.0.1:0"
     )
     network = canopen_network(sim)
-    node = BaseNode402(NODE, str(device_eds["drvi"]))
+    node = node402(NODE, device_eds["drvi"])
     network.add_node(node)
     node._op_mode_support = DRVI_MODES
     node.nmt.state = "OPERATIONAL"
