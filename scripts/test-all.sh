@@ -75,12 +75,17 @@ step "cargo clippy (workspace, all targets, warnings denied)"
 cargo clippy --workspace --lib --bins --tests --benches --examples --locked -- -D warnings
 
 # One build profile only: the benchmarks are compiled in the test profile and each runs once as
-# a smoke test. Every target with tests (not `--all-targets`: see clippy's step). One binary at
-# a time: running two side by side (tried: 2026-12-06) cut this step from about 750 s to 530 s,
-# but the hub's timing tests then failed beside the CPU-bound corpus tests.
-step "cargo test (workspace, all targets)"
+# a smoke test. Every target with tests (not `--all-targets`: see clippy's step). Built once by
+# cargo, then run by scripts/run-tests.py as cargo runs them, except that the binaries of the
+# packages that only compute (the reader, the generator, the macros, odgen) run two at a time;
+# the bus, drive and master tests, which keep time, run alone afterwards (beside a corpus
+# compile, the hub's timing tests failed).
+step "cargo test (workspace, all targets): build"
 venv_ready
-cargo test --workspace --tests --benches --examples --locked --no-fail-fast
+cargo test --workspace --tests --benches --examples --locked --no-run
+step "cargo test (workspace, all targets): run"
+cargo test --workspace --tests --benches --examples --locked --no-run --message-format=json 2>/dev/null \
+  | "$PYTHON" "$root/scripts/run-tests.py"
 
 # These leave the doc tests out: the examples in the docs, the crates' READMEs among
 # them (each published crate's README is its front page).
@@ -118,7 +123,7 @@ cargo build --workspace --bins --locked
 # Where cargo put them: $CARGO_TARGET_DIR when set (relative to the root, as cargo reads it).
 target=${CARGO_TARGET_DIR:-$root/target}
 case "$target" in /*) ;; *) target="$root/$target" ;; esac
-for bin in odgen drive-sim od-master network-boot; do
+for bin in odgen drive-sim od-master network-boot xtask; do
   [ -x "$target/debug/$bin" ] || { echo "cargo build did not build $target/debug/$bin" >&2; exit 1; }
 done
 
@@ -136,7 +141,9 @@ RUSTFLAGS="-D warnings" cargo check --locked --target x86_64-pc-windows-gnu --ta
 # a static stack bound, no core::fmt). `rustup target add` is a no-op when the target is there.
 step "firmware size budget (thumbv7em-none-eabihf, cargo xtask size)"
 rustup target add thumbv7em-none-eabihf
-cargo xtask size
+# The xtask the binaries' step built (`cargo xtask` would build it again: `cargo run -p xtask`
+# resolves features for xtask alone, and recompiled the reader and the generator, 12 s).
+"$target/debug/xtask" size
 # od-runtime without the services a firmware may leave out (sdo-block, cia402, store): linted
 # and tested, so what each feature's absence means (block refused with 0504 0001h, no CiA 402
 # state machine, "save" refused with 0800 0020h) holds, and every other service still works.
