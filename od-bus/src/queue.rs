@@ -307,9 +307,9 @@ mod tests {
     fn a_held_queue_gives_nothing_to_its_consumer_and_hands_nothing_past_it() {
         let queue = Arc::new(BoundedQueue::new(8));
         queue.hold();
-        queue.push(1).unwrap();
-        // Empty of earlier items and the consumer idle, but held: queued, not handed over.
-        queue.push_or_hand(2, |_| unreachable!()).unwrap();
+        // Empty and the consumer idle, but held: queued, not handed over.
+        queue.push_or_hand(1, |_| unreachable!()).unwrap();
+        queue.push(2).unwrap();
         let consumer = {
             let queue = Arc::clone(&queue);
             std::thread::spawn(move || {
