@@ -41,7 +41,7 @@ mod can_err {
 /// problems (the warning, passive and active changes), bus-off and restarted. Not the bus
 /// errors, arbitration and protocol errors, which come one per damaged frame and say nothing
 /// about the state.
-#[cfg_attr(not(target_os = "linux"), allow(dead_code))]
+#[cfg(all(target_os = "linux", feature = "tokio"))]
 pub(crate) const STATE_ERROR_CLASSES: u32 = can_err::CRTL | can_err::BUSOFF | can_err::RESTARTED;
 
 impl ControllerState {

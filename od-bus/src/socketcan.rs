@@ -91,7 +91,9 @@ pub fn controller_state(frame: &socketcan::CanFrame) -> Option<ControllerState> 
     }
 }
 
-/// Subscribes `socket` to the error frames that report the controller's state changes.
+/// Subscribes `socket` to the error frames that report the controller's state changes (the
+/// async bus reports them: `tokio::Controller`).
+#[cfg(feature = "tokio")]
 pub(crate) fn subscribe_state_errors(socket: &impl socketcan::SocketOptions) -> io::Result<()> {
     socket.set_error_filter(crate::controller::STATE_ERROR_CLASSES)
 }
