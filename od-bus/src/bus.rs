@@ -68,6 +68,12 @@ impl Channel {
         }
     }
 
+    /// Whether frames cross an emulated wire ([`crate::wire`]) rather than reaching the other
+    /// members at once.
+    pub(crate) fn has_wire(&self) -> bool {
+        self.wire.is_some()
+    }
+
     pub(crate) fn member_count(&self) -> usize {
         lock(&self.members).len()
     }
@@ -251,6 +257,22 @@ impl Endpoint for LocalEndpoint {
         if !self.channel.relay(self.id, frame, Timestamp::now(), None) {
             self.inbox.tx_dropped.fetch_add(1, Ordering::Relaxed);
         }
+        Ok(())
+    }
+
+    /// The frames go to every other member in one pass, in order and together, as a socket
+    /// client's `send_all` writes them in one write: no other member's frame falls between
+    /// them, and a reader is woken once for the lot. On an emulated wire each frame is
+    /// arbitrated as it would be on the bus.
+    fn send_all(&mut self, frames: &[CanFrame]) -> Result<(), TransportError> {
+        if self.inbox.queue.is_closed() {
+            return Err(TransportError::Closed);
+        }
+        if self.channel.has_wire() {
+            return frames.iter().try_for_each(|frame| self.send(*frame));
+        }
+        let batch: Vec<(MemberId, CanFrame)> = frames.iter().map(|frame| (self.id, *frame)).collect();
+        self.channel.deliver_batch(&batch, Timestamp::now());
         Ok(())
     }
 

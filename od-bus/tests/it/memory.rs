@@ -118,3 +118,50 @@ proptest! {
         }
     }
 }
+
+/// A device's answers to one turn go out together: `send_all` on an in-process endpoint puts
+/// them on the bus in order with no other member's frame between them (as a socket client's one
+/// write does), while another member sends as fast as it can from another thread.
+#[test]
+fn send_all_keeps_a_batch_together_against_a_concurrent_sender() {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+
+    const TURNS: u32 = 2_000;
+    let bus = MemoryBus::new();
+    let mut device = bus.endpoint();
+    let mut other = bus.endpoint();
+    let mut reader = bus.endpoint();
+    let stop = Arc::new(AtomicBool::new(false));
+    let chattered = Arc::new(AtomicU32::new(0));
+    let chatter = {
+        let (stop, chattered) = (Arc::clone(&stop), Arc::clone(&chattered));
+        std::thread::spawn(move || {
+            while !stop.load(Ordering::Relaxed) {
+                let n = chattered.fetch_add(1, Ordering::Relaxed);
+                other.send(frame(0x181, &n.to_le_bytes())).unwrap();
+            }
+        })
+    };
+    // The other sender is running before the first batch.
+    while chattered.load(Ordering::Relaxed) < 100 {
+        std::thread::yield_now();
+    }
+    let mut received = Vec::new();
+    for turn in 0..TURNS {
+        let t = turn.to_le_bytes();
+        device.send_all(&[frame(0x582, &t), frame(0x583, &t), frame(0x584, &t)]).unwrap();
+        // Read as we go, so that no queue overflows.
+        received.extend(drain(&mut reader));
+    }
+    stop.store(true, Ordering::Relaxed);
+    chatter.join().unwrap();
+    received.extend(drain(&mut reader));
+    assert_eq!(reader.dropped(), 0);
+    let ids: Vec<u32> = received.iter().map(|f| f.id()).collect();
+    let starts: Vec<usize> = ids.iter().enumerate().filter(|(_, id)| **id == 0x582).map(|(i, _)| i).collect();
+    assert_eq!(starts.len(), TURNS as usize, "every batch arrived");
+    let split = starts.iter().filter(|&&i| ids.get(i + 1..i + 3) != Some(&[0x583, 0x584][..])).count();
+    assert_eq!(split, 0, "batches with another frame inside, of {TURNS}");
+    assert!(ids.contains(&0x181), "the other sender's frames came too");
+}
