@@ -134,25 +134,35 @@ fn send_all_keeps_a_batch_together_against_a_concurrent_sender() {
     let mut reader = bus.endpoint();
     let stop = Arc::new(AtomicBool::new(false));
     let chattered = Arc::new(AtomicU32::new(0));
+    let read = Arc::new(AtomicU32::new(0));
     let chatter = {
-        let (stop, chattered) = (Arc::clone(&stop), Arc::clone(&chattered));
+        let (stop, chattered, read) = (Arc::clone(&stop), Arc::clone(&chattered), Arc::clone(&read));
         std::thread::spawn(move || {
             while !stop.load(Ordering::Relaxed) {
-                let n = chattered.fetch_add(1, Ordering::Relaxed);
-                other.send(frame(0x181, &n.to_le_bytes())).unwrap();
+                // At most 16 of its frames unread at a time: the reader's queue never overflows,
+                // however the threads are scheduled.
+                let n = chattered.load(Ordering::Relaxed);
+                if n < read.load(Ordering::Relaxed) + 16 {
+                    other.send(frame(0x181, &n.to_le_bytes())).unwrap();
+                    chattered.store(n + 1, Ordering::Relaxed);
+                } else {
+                    std::thread::yield_now();
+                }
             }
         })
     };
     // The other sender is running before the first batch.
-    while chattered.load(Ordering::Relaxed) < 100 {
+    while chattered.load(Ordering::Relaxed) < 8 {
         std::thread::yield_now();
     }
     let mut received = Vec::new();
     for turn in 0..TURNS {
         let t = turn.to_le_bytes();
         device.send_all(&[frame(0x582, &t), frame(0x583, &t), frame(0x584, &t)]).unwrap();
-        // Read as we go, so that no queue overflows.
-        received.extend(drain(&mut reader));
+        // Read as we go.
+        let got = drain(&mut reader);
+        read.fetch_add(got.iter().filter(|f| f.id() == 0x181).count() as u32, Ordering::Relaxed);
+        received.extend(got);
     }
     stop.store(true, Ordering::Relaxed);
     chatter.join().unwrap();
