@@ -514,16 +514,7 @@ pub enum StopReason {
 
 /// A CiA 402 state in the standard's words: `Operation enabled`.
 pub fn state_name(state: State) -> &'static str {
-    match state {
-        State::NotReadyToSwitchOn => "Not ready to switch on",
-        State::SwitchOnDisabled => "Switch on disabled",
-        State::ReadyToSwitchOn => "Ready to switch on",
-        State::SwitchedOn => "Switched on",
-        State::OperationEnabled => "Operation enabled",
-        State::QuickStopActive => "Quick stop active",
-        State::FaultReactionActive => "Fault reaction active",
-        State::Fault => "Fault",
-    }
+    state.name()
 }
 
 /// Statusword bits 7..=15 that are set, in CiA 402's words (bits 0..=6 are the state): `warning,
