@@ -254,6 +254,21 @@ mod tests {
     /// Items are handed over directly only when that overtakes nothing: not while items are
     /// queued, nor while the consumer still holds items it took; what the direct taker leaves
     /// goes first in line.
+    /// A thread draining `queue` (up to 10 items), returned once it waits in `drain_blocking`.
+    fn blocked_consumer(queue: &Arc<BoundedQueue<i32>>) -> std::thread::JoinHandle<Result<Vec<i32>, Closed>> {
+        let consumer = {
+            let queue = Arc::clone(queue);
+            std::thread::spawn(move || {
+                let mut out = Vec::new();
+                queue.drain_blocking(&mut out, 10).map(|()| out)
+            })
+        };
+        while lock(&queue.state).waiters == 0 {
+            std::thread::yield_now();
+        }
+        consumer
+    }
+
     #[test]
     fn push_or_hand_never_lets_an_item_overtake_another() {
         let queue = BoundedQueue::new(2);
@@ -280,16 +295,7 @@ mod tests {
         assert_eq!(out, [5]);
         // The consumer comes back for more and finds nothing: idle again.
         let waiting = Arc::new(queue);
-        let consumer = {
-            let queue = Arc::clone(&waiting);
-            std::thread::spawn(move || {
-                let mut out = Vec::new();
-                queue.drain_blocking(&mut out, 10).map(|()| out)
-            })
-        };
-        while lock(&waiting.state).waiters == 0 {
-            std::thread::yield_now();
-        }
+        let consumer = blocked_consumer(&waiting);
         waiting
             .push_or_hand(6, |i| {
                 direct.push(i);
@@ -310,17 +316,8 @@ mod tests {
         // Empty and the consumer idle, but held: queued, not handed over.
         queue.push_or_hand(1, |_| unreachable!()).unwrap();
         queue.push(2).unwrap();
-        let consumer = {
-            let queue = Arc::clone(&queue);
-            std::thread::spawn(move || {
-                let mut out = Vec::new();
-                queue.drain_blocking(&mut out, 10).map(|()| out)
-            })
-        };
         // The consumer waits although items are queued.
-        while lock(&queue.state).waiters == 0 {
-            std::thread::yield_now();
-        }
+        let consumer = blocked_consumer(&queue);
         queue.push(3).unwrap();
         assert!(!consumer.is_finished());
         queue.release();
