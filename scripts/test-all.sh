@@ -67,29 +67,45 @@ fi
 step "cargo fmt --check"
 cargo fmt --all -- --check
 
-# Lints with warnings denied, every crate and target (clippy is in rust-toolchain.toml). The
-# targets are named rather than `--all-targets`, which also builds the test harness of a target
-# whose manifest says `test = false` (the ones without unit tests, such as the generated
-# dictionaries' crate: a second compile of 70,000 lines for no test).
-step "cargo clippy (workspace, all targets, warnings denied)"
-cargo clippy --workspace --lib --bins --tests --benches --examples --locked -- -D warnings
+# Lints: clippy runs as the tests build. Cargo compiles the workspace's crates with
+# scripts/clippy-rustc (clippy-driver, which is rustc with clippy's lints, every warning an
+# error), the dependencies with rustc. One build where a `cargo clippy` check of every crate
+# and dependency came first (294 s of CPU on a fresh clone, 2026-12-06); the linted build of
+# the workspace's crates took 99 s of CPU where rustc alone took 148 s (clippy-driver runs
+# fewer MIR optimisations). clippy-driver also leaves out rustc's debug-build checks of raw
+# pointer dereferences (alignment, null) in the workspace's crates: the one place where such a
+# read could go wrong, a generated dictionary's slots (od_runtime::__private_v3::slot), is
+# aligned by construction (each slot is `offset_of!` of a field whose type `offset` checks at
+# compile time), and the eds reader's unsafe code reads bytes. `--config` rather than an
+# environment variable: the tests' own inner builds (the compile-fail project, the generated
+# crates) must not inherit it. The settings are part of cargo's fingerprint, so every cargo
+# command that reuses this build passes them.
+lint=(--config "build.rustc-workspace-wrapper=\"$root/scripts/clippy-rustc\"")
 
 # One build profile only: the benchmarks are compiled in the test profile and each runs once as
-# a smoke test. Every target with tests (not `--all-targets`: see clippy's step). One binary at
-# a time, as cargo runs them: the machine is busy already. Tried on fresh clones (2026-12-06):
-# every binary two at a time made od-bus's hub timing tests fail; only the CPU-bound packages'
-# binaries two at a time (canopen-eds, od-codegen, od-macros, odgen) took 334 s where they take
-# 303 s one at a time, each of them keeping both cores busy for most of its run (the inner
-# `cargo check`s of generated code and the compile-fail project build their dependencies with
-# two jobs; the test harness runs two tests at once).
+# a smoke test. Every target with tests (not `--all-targets`, which also builds the test harness
+# of a target whose manifest says `test = false`, such as the generated dictionaries' crate: a
+# second compile of 70,000 lines for no test). First the libraries, the binaries (every one:
+# the Python tests run drive-sim, odgen, od-master and network-boot) and the tests; then
+# `cargo test` adds the benchmarks and examples and runs them. The binaries are built with
+# the dev-dependencies' features, as `cargo test` builds the ones its integration tests run;
+# that each one builds with its own features is the cross-platform step's check below.
+# One binary at a time, as cargo runs them: the machine is busy already. Tried on fresh clones
+# (2026-12-06): every binary two at a time made od-bus's hub timing tests fail; only the
+# CPU-bound packages' binaries two at a time (canopen-eds, od-codegen, od-macros, odgen) took
+# 334 s where they take 303 s one at a time, each of them keeping both cores busy for most of
+# its run (the inner `cargo check`s of generated code and the compile-fail project build their
+# dependencies with two jobs; the test harness runs two tests at once).
+step "cargo build (libraries, binaries, tests; clippy's lints, warnings denied)"
+cargo build --workspace --lib --bins --tests --locked "${lint[@]}"
 step "cargo test (workspace, all targets)"
 venv_ready
-cargo test --workspace --tests --benches --examples --locked --no-fail-fast
+cargo test --workspace --tests --benches --examples --locked --no-fail-fast "${lint[@]}"
 
 # These leave the doc tests out: the examples in the docs, the crates' READMEs among
 # them (each published crate's README is its front page).
 step "doc tests (workspace)"
-cargo test --workspace --doc --locked --no-fail-fast
+cargo test --workspace --doc --locked --no-fail-fast "${lint[@]}"
 
 # The crates published on crates.io, in dependency order (drive, generated, devices, odgen,
 # xtask and the examples are not published). Their docs build without a warning (docs.rs
@@ -121,42 +137,44 @@ if grep -E '^warning: `[^`]+` \([^)]*\) generated [0-9]+ warnings?' "$package_lo
 fi
 rm -f "$package_log"
 
-# `cargo test` builds the binaries with the features of the dev-dependencies too; this builds
-# every binary with its own dependencies' features alone, SocketCAN (Linux) and slcan included:
-# what a user gets from `cargo build`, and the programs the Python tests run (drive-sim, odgen,
-# od-master, network-boot; `cargo test` links only those its own integration tests use). One
-# build: a `cargo check` of the same here and this build before pytest paid for it twice.
-step "binaries (with SocketCAN and slcan) build with their own features"
-cargo build --workspace --bins --locked
-# Where cargo put them: $CARGO_TARGET_DIR when set (relative to the root, as cargo reads it).
+# The programs the Python tests run, from the tests' build (drive-sim, odgen, od-master,
+# network-boot): where cargo put them, $CARGO_TARGET_DIR when set (relative to the root, as
+# cargo reads it).
 target=${CARGO_TARGET_DIR:-$root/target}
 case "$target" in /*) ;; *) target="$root/$target" ;; esac
 for bin in odgen drive-sim od-master network-boot xtask; do
   [ -x "$target/debug/$bin" ] || { echo "cargo build did not build $target/debug/$bin" >&2; exit 1; }
 done
 
-# The host crates and programs build for Windows and macOS too (slcan adapters are reached
-# there through the serialport crate): a check, not a build, so no linker or SDK is needed, with
-# warnings denied. Both targets in one cargo run (on 2 shared cores: 2 min 46 s of wall time
-# for Windows alone, 52 s of CPU). `rustup target add` is a no-op when they are there.
-step "cargo check for Windows and macOS (host crates and binaries, warnings denied)"
+# The host crates and programs with their own features alone, as a user's `cargo build` gets
+# them (the tests' build has the dev-dependencies' features too), for this machine (SocketCAN
+# and slcan on Linux), Windows and macOS (slcan adapters are reached there through the
+# serialport crate): a check, not a build, so no linker or SDK is needed, with warnings denied
+# (a feature left off shows up as dead code). The three targets in one cargo run share the
+# proc macros and build scripts. This machine's target is named, so its check lands beside the
+# tests' build rather than over it. Before 2026-12-07 a `cargo build` of every binary did this
+# machine's part, and built the proc macros and the code generator again (136 s of CPU); the
+# binaries the Python tests run now come from the tests' build. `rustup target add` is a no-op
+# when the targets are there.
+step "cargo check: the programs with their own features, for this machine, Windows and macOS (warnings denied)"
 rustup target add x86_64-pc-windows-gnu aarch64-apple-darwin
-hosts=(-p od-master -p od-master-cli -p odgen -p drive)
-RUSTFLAGS="-D warnings" cargo check --locked --target x86_64-pc-windows-gnu --target aarch64-apple-darwin \
-  "${hosts[@]}"
+host=$(rustc -vV | sed -n 's/^host: //p')
+hosts=(-p od-master -p od-master-cli -p odgen -p drive -p network-boot -p xtask -p inline-macro-user)
+RUSTFLAGS="-D warnings" cargo check --locked --target "$host" --target x86_64-pc-windows-gnu \
+  --target aarch64-apple-darwin "${hosts[@]}"
 
 # The firmware example for a Cortex-M4F, once per device, against the size budget (flash, RAM,
 # a static stack bound, no core::fmt). `rustup target add` is a no-op when the target is there.
 step "firmware size budget (thumbv7em-none-eabihf, cargo xtask size)"
 rustup target add thumbv7em-none-eabihf
-# The xtask the binaries' step built (`cargo xtask` would build it again: `cargo run -p xtask`
+# The xtask the tests' build built (`cargo xtask` would build it again: `cargo run -p xtask`
 # resolves features for xtask alone, and recompiled the reader and the generator, 12 s).
 "$target/debug/xtask" size
 # od-runtime without the services a firmware may leave out (sdo-block, cia402, store): linted
 # and tested, so what each feature's absence means (block refused with 0504 0001h, no CiA 402
 # state machine, "save" refused with 0800 0020h) holds, and every other service still works.
-cargo clippy -p od-runtime --no-default-features --features embedded-can --all-targets --locked -- -D warnings
-cargo test -p od-runtime --no-default-features --features embedded-can --locked
+# Linted as it builds, like the workspace's tests; the benchmarks build and run once too.
+cargo test -p od-runtime --no-default-features --features embedded-can --all-targets --locked "${lint[@]}"
 
 # The Python tests wait on the simulated drives' real time, not on the CPU (in one process:
 # 6.4 minutes of wall time for 35 s of CPU), and every drive-sim, hub and client listens on a
