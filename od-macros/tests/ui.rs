@@ -9,7 +9,10 @@
 //! built their other dev-dependencies (the simulated drives, criterion, proptest).
 //!
 //! * `ui/fail/`: `object_dictionary!` mistakes. Several share a file where they can: every
-//!   `object_dictionary!` reports all of its errors in one compile.
+//!   `object_dictionary!` reports all of its errors in one compile. `every_*.rs`, `follow_up.rs`
+//!   and `syntax.rs` are the inputs of the crate's in-process error tests (`src/tests.rs`,
+//!   which check the messages and their order): here each error's place is checked as a user
+//!   sees it, line, column and underlined tokens.
 //! * `ui/client/`: what a generated client refuses: writing a `ro` object and reading a `wo`
 //!   one, a quantity of the wrong dimension, a PDO field of the wrong type, an object of a
 //!   description it was not generated from, and a vendor's file without a sidecar whose
