@@ -92,11 +92,7 @@ fn errors_of(src: &str) -> String {
         Ok(_) => panic!("expected errors for:\n{src}"),
         Err(e) => e,
     };
-    errors
-        .into_iter()
-        .map(|e| e.to_string())
-        .collect::<Vec<_>>()
-        .join("\n")
+    errors.into_iter().map(|e| e.to_string()).collect::<Vec<_>>().join("\n")
 }
 
 // ---- the same dictionary both ways -------------------------------------------------------------

@@ -3,8 +3,8 @@
 //! versions do not compile together, and the error names the module the code expected.
 //!
 //! Two compile-fail cases (`tests/stale/*.rs` with their `.stderr`), both made from the code
-//! this generator writes for a one-entry device, compiled by od-macros' compile tests
-//! (`od-macros/tests/ui.rs`, the workspace's one trybuild project):
+//! this generator writes for a one-entry device, compiled by the workspace's compile tests
+//! (`ui-tests/tests/ui.rs`, the workspace's one trybuild project):
 //!
 //! * `older_generator.rs`: code written against an earlier interface (`__private_v2`), compiled
 //!   with today's runtime: "cannot find `__private_v2` in `od_runtime`".

@@ -2,11 +2,14 @@
 //! mistake with its message on the offending tokens (`ui/**/*.stderr`).
 //!
 //! All compile-fail cases of the workspace are here, in one trybuild project, so that the
-//! dependencies they need (this crate's generator, od-runtime, od-master) are built once in
+//! dependencies they need (od-macros and its generator, od-runtime, od-master) are built once in
 //! trybuild's own target directory, and only checked, never code-generated (a trybuild project
 //! with a passing case builds everything): 290 s of CPU for this project alone before, when it
 //! had a passing case, and od-master and od-codegen each had a project of their own that also
-//! built their other dev-dependencies (the simulated drives, criterion, proptest).
+//! built their other dev-dependencies (the simulated drives, criterion, proptest). A package
+//! of its own (`ui-tests`), so that trybuild's project has only the dependencies the cases
+//! need (it takes every dependency of the package it runs in) and the tests' build compiles
+//! them once, for the target (a proc-macro crate's tests are built for the host).
 //!
 //! * `ui/fail/`: `object_dictionary!` mistakes. Several share a file where they can: every
 //!   `object_dictionary!` reports all of its errors in one compile. `every_*.rs`, `follow_up.rs`
