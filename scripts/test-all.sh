@@ -17,7 +17,9 @@ cpu() {
   cpu_s=$(awk 'END { split($1, u, "m"); split($2, s, "m"); printf "%.0f", u[1] * 60 + u[2] + s[1] * 60 + s[2] }' "$cpu_file")
 }
 step() { cpu; printf '\n==> [%4ss, cpu %ss] %s\n' "$SECONDS" "$cpu_s" "$*"; }
-trap 'rc=$?; cpu; printf "\n==> [%4ss, cpu %ss] done (exit %s)\n" "$SECONDS" "$cpu_s" "$rc"; rm -f "$cpu_file"' EXIT
+# A step that fails ends the run: the Python tests, when they run in the background, end with it.
+pytest_pid=
+trap 'rc=$?; [ -z "$pytest_pid" ] || kill -- "-$pytest_pid" 2>/dev/null || true; cpu; printf "\n==> [%4ss, cpu %ss] done (exit %s)\n" "$SECONDS" "$cpu_s" "$rc"; rm -f "$cpu_file"' EXIT
 
 # The public EDS corpus lives beside the repository (../shared/eds-corpus) on the project's
 # machines; the corpus tests say they are skipped when it is absent.
@@ -107,41 +109,86 @@ cargo test --workspace --tests --benches --examples --locked --no-fail-fast "${l
 step "doc tests (workspace)"
 cargo test --workspace --doc --locked --no-fail-fast "${lint[@]}"
 
+# The Python tests wait on the simulated drives' real time, not on the CPU (in one process:
+# 6.4 minutes of wall time for 35 s of CPU), and every drive-sim, hub and client listens on a
+# port the OS picks: so the test files run side by side, six at a time, largest first, each
+# in a pytest of its own whose output is printed when it ends (on 2 cores, alone, 2026-11-29:
+# four at a time 74 s, six 51 s, eight 45 s, the longest file taking 45 s). A file that fails,
+# or collects no tests (pytest's exit code 5), fails the step. They run in the background
+# while the steps below compile (docs, packages, other platforms, firmware; none of them
+# writes the programs the tests run): they need a little over one core for a minute, and the
+# compiles take the rest (the files were made to hold under two busy cores: `conftest.py`'s
+# waits). Their output is printed, and their result counted, after the firmware step.
+# Where cargo puts what it builds: $CARGO_TARGET_DIR when set (relative to the root, as cargo
+# reads it).
+target=${CARGO_TARGET_DIR:-$root/target}
+case "$target" in /*) ;; *) target="$root/$target" ;; esac
+step "pytest (python-canopen against the simulated drives), six files at a time, in the background"
+export DRIVE_SIM="$target/debug/drive-sim"
+export ODGEN="$target/debug/odgen"
+pytest_logs=$(mktemp -d)
+# In a process group of its own (setsid), so that a failing step can end all of it.
+# shellcheck disable=SC2016
+ls -S tests/python/test_*.py | setsid xargs -P 6 -I{} sh -c '
+  log="$2/$(basename "$1").log"
+  "$0" -m pytest -q -p no:cacheprovider "$1" >"$log" 2>&1
+  rc=$?
+  printf "\n--- %s (exit %s)\n" "$1" "$rc"
+  cat "$log"
+  [ "$rc" -eq 0 ]' "$PYTHON" {} "$pytest_logs" >"$pytest_logs/all.out" 2>&1 &
+pytest_pid=$!
+pytest_started=$SECONDS
+
 # The crates published on crates.io, in dependency order (drive, generated, devices, odgen,
-# xtask and the examples are not published). Their docs build without a warning (docs.rs
-# builds od-runtime with all features), and each one packages and builds from its .crate
-# alone: `cargo package` of several packages resolves the workspace crates they depend on from
-# the .crate files it has just made (a local registry in target/package), as crates.io will.
-# The packages hold the sources, README and license files only: "ignoring test/benchmark ..."
-# is cargo saying so. --allow-dirty: a local run checks the working tree as it is.
-published=(-p od-sidecar -p od-runtime -p od-bus -p od-master -p canopen-eds -p od-codegen -p od-macros)
+# xtask, ui-tests and the examples are not published). Their docs build without a warning
+# (docs.rs builds od-runtime with all features), and each one packages and compiles from its
+# .crate alone. The packages hold the sources, README and license files only: "ignoring
+# test/benchmark ..." is cargo saying so. --allow-dirty: a local run checks the working tree
+# as it is.
+published=(od-sidecar od-runtime od-bus od-master canopen-eds od-codegen od-macros)
 step "docs of the published crates (warnings denied)"
-RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --all-features --locked "${published[@]}"
-step "cargo package (the published crates, each built from its .crate)"
-# Cargo unpacks those .crate files once per version into its cache (registry/src/-HASH/, one
-# directory per local registry) and never again: after a change to a crate whose version is
-# unchanged, a second run would build the old sources. The unpacked copies of our own crates
-# are removed first; cargo unpacks them again from the new .crate files.
+RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --all-features --locked "${published[@]/#/-p}"
+
+# Each .crate is unpacked and checked on its own, as crates.io will have it: the workspace
+# crates it depends on come from their .crate files too (a workspace of the unpacked crates,
+# crates.io's names patched to them), and each `cargo check -p` resolves only that crate's
+# dependencies and features, as its users' builds do. A check rather than the build of
+# `cargo package`'s own verification: what a .crate can lack (a file left out of `include`, a
+# feature only a sibling turned on, a warning with a feature left off: `od-bus` without tokio
+# warned of dead code) fails the check just as it fails the build; the build also generated
+# the code of each crate and its dependencies again (105 s of CPU on a fresh clone).
+step "cargo package (the published crates), each checked from its .crate alone (warnings denied)"
 version=$(sed -n 's/^version = "\(.*\)"$/\1/p' Cargo.toml | head -n 1)
-for crate in "${published[@]}"; do
-  [ "$crate" = -p ] || rm -rf "${CARGO_HOME:-$HOME/.cargo}"/registry/src/-*/"$crate-$version"
-done
-# Each crate built alone, as its users build it, compiles without a warning (a warning there
-# that the workspace build does not show comes from a feature left off: `od-bus` without tokio
-# warned of dead code). Cargo's own notes about the files left out are not compiler warnings.
+cargo package --no-verify --locked --allow-dirty "${published[@]/#/-p}"
+unpacked="$target/package/check"
+rm -rf "$unpacked"
+mkdir -p "$unpacked"
+{
+  echo '[workspace]'
+  echo 'resolver = "3"'
+  printf 'members = ['
+  printf '"%s", ' "${published[@]/%/-$version}"
+  echo ']'
+  echo '[patch.crates-io]'
+  for crate in "${published[@]}"; do
+    tar -xzf "$target/package/$crate-$version.crate" -C "$unpacked"
+    echo "$crate = { path = \"$crate-$version\" }"
+  done
+} >"$unpacked/Cargo.toml"
+# The workspace's lock file: the same dependency versions as every other step, offline.
+cp Cargo.lock "$unpacked/Cargo.lock"
 package_log=$(mktemp)
-cargo package --locked --allow-dirty "${published[@]}" 2>&1 | tee "$package_log"
+for crate in "${published[@]}"; do
+  cargo check --offline --manifest-path "$unpacked/Cargo.toml" --target-dir "$target" -p "$crate" 2>&1 | tee -a "$package_log"
+done
 if grep -E '^warning: `[^`]+` \([^)]*\) generated [0-9]+ warnings?' "$package_log"; then
-  echo "a published crate built from its .crate alone has compiler warnings (above)" >&2
+  echo "a published crate checked from its .crate alone has compiler warnings (above)" >&2
   exit 1
 fi
 rm -f "$package_log"
 
 # The programs the Python tests run, from the tests' build (drive-sim, odgen, od-master,
-# network-boot): where cargo put them, $CARGO_TARGET_DIR when set (relative to the root, as
-# cargo reads it).
-target=${CARGO_TARGET_DIR:-$root/target}
-case "$target" in /*) ;; *) target="$root/$target" ;; esac
+# network-boot).
 for bin in odgen drive-sim od-master network-boot xtask; do
   [ -x "$target/debug/$bin" ] || { echo "cargo build did not build $target/debug/$bin" >&2; exit 1; }
 done
@@ -176,21 +223,10 @@ rustup target add thumbv7em-none-eabihf
 # Linted as it builds, like the workspace's tests; the benchmarks build and run once too.
 cargo test -p od-runtime --no-default-features --features embedded-can --all-targets --locked "${lint[@]}"
 
-# The Python tests wait on the simulated drives' real time, not on the CPU (in one process:
-# 6.4 minutes of wall time for 35 s of CPU), and every drive-sim, hub and client listens on a
-# port the OS picks: so the test files run side by side, six at a time, largest first, each
-# in a pytest of its own whose output is printed when it ends (on 2 cores, alone, 2026-11-29:
-# four at a time 74 s, six 51 s, eight 45 s, the longest file taking 45 s). A file that fails,
-# or collects no tests (pytest's exit code 5), fails the step.
-step "pytest (python-canopen against the simulated drives), six files at a time"
-export DRIVE_SIM="$target/debug/drive-sim"
-export ODGEN="$target/debug/odgen"
-logs=$(mktemp -d)
-# shellcheck disable=SC2016
-ls -S tests/python/test_*.py | xargs -P 6 -I{} sh -c '
-  log="$2/$(basename "$1").log"
-  "$0" -m pytest -q -p no:cacheprovider "$1" >"$log" 2>&1
-  rc=$?
-  printf "\n--- %s (exit %s)\n" "$1" "$rc"
-  cat "$log"
-  [ "$rc" -eq 0 ]' "$PYTHON" {} "$logs"
+
+step "pytest's results (started ${pytest_started}s)"
+pytest_rc=0
+wait "$pytest_pid" || pytest_rc=$?
+cat "$pytest_logs/all.out"
+echo "pytest: $((SECONDS - pytest_started)) s from its start, exit $pytest_rc"
+exit "$pytest_rc"
