@@ -223,8 +223,10 @@ rustup target add thumbv7em-none-eabihf
 # od-runtime without the services a firmware may leave out (sdo-block, cia402, store): linted
 # and tested, so what each feature's absence means (block refused with 0504 0001h, no CiA 402
 # state machine, "save" refused with 0800 0020h) holds, and every other service still works.
-# Linted as it builds, like the workspace's tests; the benchmarks build and run once too.
+# Linted as it builds, like the workspace's tests; the benchmarks build and run once too, and
+# the doc examples run without those features as well.
 cargo test -p od-runtime --no-default-features --features embedded-can --all-targets --locked "${lint[@]}"
+cargo test -p od-runtime --no-default-features --features embedded-can --doc --locked "${lint[@]}"
 
 
 step "pytest's results (started ${pytest_started}s)"
