@@ -82,10 +82,9 @@ fn model_of(input: TokenStream) -> Model {
 }
 
 /// Every error of an input given as text, one message a line, in the order reported. Where each
-/// one sits is the compiler's to show: the same inputs are compile-fail cases
-/// (`tests/ui/fail/every_declaration.rs`, `every_pdo.rs`, `follow_up.rs`, `syntax.rs`), whose
-/// `.stderr` files hold every error with its line, column and the tokens it underlines (here,
-/// outside a compiler, spans carry no positions).
+/// one sits is the compiler's to show: the inputs of the error tests below are compile-fail
+/// cases ([`ui_case`]), whose `.stderr` files hold every error with its line, column and the
+/// tokens it underlines (here, outside a compiler, spans carry no positions).
 fn errors_of(src: &str) -> String {
     let input: TokenStream = src.parse().expect("test input tokenizes");
     let errors = match expand::dictionary(input) {
@@ -93,6 +92,17 @@ fn errors_of(src: &str) -> String {
         Err(e) => e,
     };
     errors.into_iter().map(|e| e.to_string()).collect::<Vec<_>>().join("\n")
+}
+
+/// What the `object_dictionary! { … }` of the compile-fail case `NAME` holds
+/// (`ui-tests/tests/ui/fail/NAME.rs`): one input for both kinds of test.
+fn ui_case(name: &str) -> String {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../ui-tests/tests/ui/fail").join(format!("{name}.rs"));
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let open = "od_macros::object_dictionary! {";
+    let start = text.find(open).unwrap_or_else(|| panic!("{}: no `{open}`", path.display())) + open.len();
+    let end = text.rfind("\n}\n").unwrap_or_else(|| panic!("{}: no closing `}}` line", path.display()));
+    text[start..end].to_owned()
 }
 
 // ---- the same dictionary both ways -------------------------------------------------------------
@@ -249,51 +259,14 @@ fn defaults_of_an_empty_dictionary() {
 
 #[test]
 fn every_declaration_error_in_one_pass_on_its_token() {
-    let errors = errors_of(
-        r#"
-var 0x2000 "A": u8, rw, default = 300;
-var 0x2000 "B": u33, rx;
-record 0x2001 "R" { 256 "x": u8, ro; 1 "y": u8, ro; 1 "z": u8, ro; }
-var 0x2002 "C": u8, rw, pdo = 1, bogus = 3, default = -1;
-var 0x2003 "D": u8 rw;
-frob 0x2004;
-var 0x0005 "E": u8, rw;
-var 0x10000 "F": u8, rw;
-var 0x2006 "G": i16, rw, default = 5, min = 10, max = 0;
-var 0x2007 "H": u16, rw, default = 70, max = 60;
-array 0x2008 "I": u8, ro, len = 2 { 1 "x"; }
-array 0x2009 "J": u8, ro { 0 "zero"; 1 "one": u8, ro; 1 "dup"; }
-var 0x200A "K": VISIBLE_STRING, ro, default = 5, min = 1;
-var 0x200B "L": u32, rw, min = NODEID + 1;
-var 0x200C " M": u8, rw;
-var 0x200D "N": u64, rw, default = NODEID + 170141183460469231731687303715884105727;
-var 0x200E "O": u64, rw, default = 340282366920938463463374607431768211456;
-var 0x200F "P": u64, rw, default = -170141183460469231731687303715884105727;
-"#,
-    );
+    // Each on its token: `ui-tests/tests/ui/fail/every_declaration.stderr`.
+    let errors = errors_of(&ui_case("every_declaration"));
     insta::assert_snapshot!("declaration_errors", errors);
 }
 
 #[test]
 fn pdo_errors() {
-    let errors = errors_of(
-        r#"
-var 0x2000 "A": u32, rww, pdo;
-var 0x2001 "B": u32, rww, pdo;
-var 0x2002 "C": u32, rww, pdo;
-var 0x2003 "Status": u16, ro, pdo;
-var 0x2004 "Hidden": u16, rw;
-var 0x2005 "Name": VISIBLE_STRING, rw, pdo, default = "x";
-rpdo 1: map = [0x2000, 0x2001, 0x2002];
-rpdo 2: map = [0x2003];
-tpdo 1: map = [0x2004];
-tpdo 2: map = [0x2005, 0x2099, 0x2000:4];
-tpdo 3: capacity = 1, map = [0x2000, 0x2001];
-rpdo 4: inhibit = 5, cob_id = NODEID + 0x1_0000_0000;
-rpdo 600;
-tpdo 1: map = [];
-"#,
-    );
+    let errors = errors_of(&ui_case("every_pdo"));
     insta::assert_snapshot!("pdo_errors", errors);
 }
 
@@ -314,42 +287,13 @@ var 0x2000 "A": u32, rw;
 fn follow_up_errors_are_not_reported() {
     // 0x2000 has an unknown type: the PDO mapping it is not also reported, and neither is the
     // (strict) mandatory-object check that a broken dictionary cannot pass anyway.
-    let errors = errors_of(
-        r#"
-strict;
-device { vendor_name = "V", product_name = "P", baud_rates = [250] }
-var 0x2000 "A": u33, rw, pdo;
-rpdo 1: map = [0x2000];
-var 0x2001 "B": u8, rw, default = ;
-tpdo 1: map = [0x2001];
-"#,
-    );
+    let errors = errors_of(&ui_case("follow_up"));
     insta::assert_snapshot!("follow_up_errors", errors);
 }
 
 #[test]
 fn syntax_errors_recover_at_the_next_item() {
-    let errors = errors_of(
-        r#"
-mod a;
-mod b;
-strict;
-strict;
-device { vendor_name = 5, colour = "red", vendor_name = "x", baud_rates = [300] }
-device { }
-var "no index";
-var 0x2000: u8, rw;
-var 0x2001 "A" u8, rw;
-var 0x2002 "B": , rw;
-record 0x2003 "R": u8, rw { 1 "a": u8, rw; }
-record 0x2004 "S" { 1 "a" u8; 2 "b": u8, rw }
-array 0x2005 "T": u8, rw { 1 "a": u8; }
-var 0x2006 "C": u8, rw, default = 1u8;
-var 0x2007 "D": u8, rw, default = 1 2;
-var 0x2008 "E": u8, rw
-var 0x2009 "F": u8, rw;
-"#,
-    );
+    let errors = errors_of(&ui_case("syntax"));
     insta::assert_snapshot!("syntax_errors", errors);
 }
 
