@@ -83,6 +83,14 @@ cargo fmt --all -- --check
 # crates) must not inherit it. The settings are part of cargo's fingerprint, so every cargo
 # command that reuses this build passes them.
 lint=(--config "build.rustc-workspace-wrapper=\"$root/scripts/clippy-rustc\"")
+# syn optimized a little, in this build only: od-codegen's corpus tests parse ~40 MB of
+# generated code with it (their CPU 80 s unoptimized, 52 s optimized, for 18 s more to build
+# it). Not in .cargo/config.toml, so that the tests' inner builds (trybuild's project, the
+# generated crates, the build-script project), where syn only runs derive macros and the
+# proc macro's small expansions, build it unoptimized: trybuild's project took 91 s of CPU
+# with it optimized, 72 s without (2026-12-07).
+syn_optimized=(--config 'profile.dev.package."syn@3".opt-level = 1')
+lint+=("${syn_optimized[@]}")
 
 # One build profile only: the benchmarks are compiled in the test profile and each runs once as
 # a smoke test. Every target with tests (not `--all-targets`, which also builds the test harness
@@ -179,12 +187,10 @@ mkdir -p "$unpacked"
 } >"$unpacked/Cargo.toml"
 # The workspace's lock file: the same dependency versions as every other step, offline.
 cp Cargo.lock "$unpacked/Cargo.lock"
-# syn unoptimized: each crate alone asks for its own syn features, so syn is built again for
-# several of them, and here it only runs derive macros (25 s of CPU a build optimized, 5 s not).
 package_log=$(mktemp)
 for crate in "${published[@]}"; do
-  cargo check --offline --manifest-path "$unpacked/Cargo.toml" --target-dir "$target" -p "$crate" \
-    --config 'profile.dev.package."syn@3".opt-level = 0' 2>&1 | tee -a "$package_log"
+  cargo check --offline --manifest-path "$unpacked/Cargo.toml" --target-dir "$target" -p "$crate" 2>&1 |
+    tee -a "$package_log"
 done
 if grep -E '^warning: `[^`]+` \([^)]*\) generated [0-9]+ warnings?' "$package_log"; then
   echo "a published crate checked from its .crate alone has compiler warnings (above)" >&2
@@ -203,7 +209,8 @@ done
 # and slcan on Linux), Windows and macOS (slcan adapters are reached there through the
 # serialport crate): a check, not a build, so no linker or SDK is needed, with warnings denied
 # (a feature left off shows up as dead code). The three targets in one cargo run share the
-# proc macros and build scripts. This machine's target is named, so its check lands beside the
+# proc macros and build scripts, and take the tests' build's syn (od-macros' generator uses it)
+# rather than building it again. This machine's target is named, so its check lands beside the
 # tests' build rather than over it. Before 2026-12-07 a `cargo build` of every binary did this
 # machine's part, and built the proc macros and the code generator again (136 s of CPU); the
 # binaries the Python tests run now come from the tests' build. `rustup target add` is a no-op
@@ -213,7 +220,7 @@ rustup target add x86_64-pc-windows-gnu aarch64-apple-darwin
 host=$(rustc -vV | sed -n 's/^host: //p')
 hosts=(-p od-master -p od-master-cli -p odgen -p drive -p network-boot -p xtask -p inline-macro-user)
 RUSTFLAGS="-D warnings" cargo check --locked --target "$host" --target x86_64-pc-windows-gnu \
-  --target aarch64-apple-darwin "${hosts[@]}"
+  --target aarch64-apple-darwin "${hosts[@]}" "${syn_optimized[@]}"
 
 # The firmware example for a Cortex-M4F, once per device, against the size budget (flash, RAM,
 # a static stack bound, no core::fmt). `rustup target add` is a no-op when the target is there.

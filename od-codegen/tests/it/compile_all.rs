@@ -53,10 +53,6 @@ fn check(krate: &Path) -> std::process::Output {
         // of source): a fresh check of the devices' crate took 57 s with it and 18 s without. An
         // unchanged crate is not rechecked either way; a changed one is rechecked whole.
         .env("CARGO_INCREMENTAL", "0")
-        // The workspace's .cargo/config.toml builds syn optimized, for the generator's own
-        // tests; here syn only runs other crates' derive macros (serde, thiserror, tokio) on a
-        // few lines each: unoptimized it builds in a third of the time.
-        .args(["--config", "profile.dev.package.\"syn@3\".opt-level = 0"])
         .output()
         .expect("run cargo check")
 }

@@ -28,10 +28,6 @@ fn cargo_build(krate: &Path) -> String {
         .env_remove("CARGO_TARGET_DIR")
         .env_remove("CARGO_BUILD_TARGET_DIR")
         .env("CARGO_INCREMENTAL", "0")
-        // The workspace's .cargo/config.toml builds syn optimized, for the generator's own
-        // tests; here the build script generates one small file: unoptimized, syn builds in a
-        // third of the time.
-        .args(["--config", "profile.dev.package.\"syn@3\".opt-level = 0"])
         .env("CARGO_TERM_COLOR", "never")
         .output()
         .expect("run cargo build");
