@@ -82,7 +82,7 @@ cargo fmt --all -- --check
 # environment variable: the tests' own inner builds (the compile-fail project, the generated
 # crates) must not inherit it. The settings are part of cargo's fingerprint, so every cargo
 # command that reuses this build passes them.
-lint=(--config "build.rustc-workspace-wrapper=\"$root/scripts/clippy-rustc\"")
+tests_build=(--config "build.rustc-workspace-wrapper=\"$root/scripts/clippy-rustc\"")
 # syn optimized a little, in this build only: od-codegen's corpus tests parse ~40 MB of
 # generated code with it (their CPU 80 s unoptimized, 52 s optimized, for 18 s more to build
 # it). Not in .cargo/config.toml, so that the tests' inner builds (trybuild's project, the
@@ -90,7 +90,7 @@ lint=(--config "build.rustc-workspace-wrapper=\"$root/scripts/clippy-rustc\"")
 # proc macro's small expansions, build it unoptimized: trybuild's project took 91 s of CPU
 # with it optimized, 72 s without (2026-12-07).
 syn_optimized=(--config 'profile.dev.package."syn@3".opt-level = 1')
-lint+=("${syn_optimized[@]}")
+tests_build+=("${syn_optimized[@]}")
 
 # One build profile only: the benchmarks are compiled in the test profile and each runs once as
 # a smoke test. Every target with tests (not `--all-targets`, which also builds the test harness
@@ -107,33 +107,39 @@ lint+=("${syn_optimized[@]}")
 # its run (the inner `cargo check`s of generated code and the compile-fail project build their
 # dependencies with two jobs; the test harness runs two tests at once).
 step "cargo build (libraries, binaries, tests; clippy's lints, warnings denied)"
-cargo build --workspace --lib --bins --tests --locked "${lint[@]}"
-step "cargo test (workspace, all targets)"
-venv_ready
-cargo test --workspace --tests --benches --examples --locked --no-fail-fast "${lint[@]}"
+cargo build --workspace --lib --bins --tests --locked "${tests_build[@]}"
 
-# These leave the doc tests out: the examples in the docs, the crates' READMEs among
-# them (each published crate's README is its front page).
-step "doc tests (workspace)"
-cargo test --workspace --doc --locked --no-fail-fast "${lint[@]}"
+# The programs the Python tests run, from the tests' build. Where cargo puts what it builds:
+# $CARGO_TARGET_DIR when set (relative to the root, as cargo reads it).
+target=${CARGO_TARGET_DIR:-$root/target}
+case "$target" in /*) ;; *) target="$root/$target" ;; esac
+programs=(drive-sim odgen od-master network-boot inline-macro-user)
+for bin in "${programs[@]}" xtask; do
+  [ -x "$target/debug/$bin" ] || { echo "cargo build did not build $target/debug/$bin" >&2; exit 1; }
+done
 
 # The Python tests wait on the simulated drives' real time, not on the CPU (in one process:
 # 6.4 minutes of wall time for 35 s of CPU), and every drive-sim, hub and client listens on a
 # port the OS picks: so the test files run side by side, six at a time, largest first, each
 # in a pytest of its own whose output is printed when it ends (on 2 cores, alone, 2026-11-29:
 # four at a time 74 s, six 51 s, eight 45 s, the longest file taking 45 s). A file that fails,
-# or collects no tests (pytest's exit code 5), fails the step. They run in the background
-# while the steps below compile (docs, packages, other platforms, firmware; none of them
-# writes the programs the tests run): they need a little over one core for a minute, and the
-# compiles take the rest (the files were made to hold under two busy cores: `conftest.py`'s
-# waits). Their output is printed, and their result counted, after the firmware step.
-# Where cargo puts what it builds: $CARGO_TARGET_DIR when set (relative to the root, as cargo
-# reads it).
-target=${CARGO_TARGET_DIR:-$root/target}
-case "$target" in /*) ;; *) target="$root/$target" ;; esac
+# or collects no tests (pytest's exit code 5), fails the run. They run in the background
+# from here on, beside the Rust tests, whose test binaries leave a core idle now and then
+# (one long test at the end of a binary; 330 s of wall time for 580 s of CPU): they need a
+# little over one core for a minute (the files were made to hold under two busy cores:
+# `conftest.py`'s waits). Their output is printed, and their result counted, at the end.
+# They run copies of the programs, so that nothing cargo does later can change a program
+# under a running test; every program is named, so no test builds one itself (one did:
+# test_macro_eds.py's `cargo build -p inline-macro-user` without the tests' settings,
+# compiling the proc macro and its generator again while the docs built).
 step "pytest (python-canopen against the simulated drives), six files at a time, in the background"
-export DRIVE_SIM="$target/debug/drive-sim"
-export ODGEN="$target/debug/odgen"
+venv_ready
+pytest_programs=$(mktemp -d)
+for bin in "${programs[@]}"; do
+  cp "$target/debug/$bin" "$pytest_programs/"
+done
+export DRIVE_SIM="$pytest_programs/drive-sim" ODGEN="$pytest_programs/odgen" OD_MASTER="$pytest_programs/od-master"
+export NETWORK_BOOT="$pytest_programs/network-boot" INLINE_MACRO_USER="$pytest_programs/inline-macro-user"
 pytest_logs=$(mktemp -d)
 # In a process group of its own (setsid), so that a failing step can end all of it.
 # shellcheck disable=SC2016
@@ -146,6 +152,14 @@ ls -S tests/python/test_*.py | setsid xargs -P 6 -I{} sh -c '
   [ "$rc" -eq 0 ]' "$PYTHON" {} "$pytest_logs" >"$pytest_logs/all.out" 2>&1 &
 pytest_pid=$!
 pytest_started=$SECONDS
+
+step "cargo test (workspace, all targets)"
+cargo test --workspace --tests --benches --examples --locked --no-fail-fast "${tests_build[@]}"
+
+# These leave the doc tests out: the examples in the docs, the crates' READMEs among
+# them (each published crate's README is its front page).
+step "doc tests (workspace)"
+cargo test --workspace --doc --locked --no-fail-fast "${tests_build[@]}"
 
 # The crates published on crates.io, in dependency order (drive, generated, devices, odgen,
 # xtask, ui-tests and the examples are not published). Their docs build without a warning
@@ -198,12 +212,6 @@ if grep -E '^warning: `[^`]+` \([^)]*\) generated [0-9]+ warnings?' "$package_lo
 fi
 rm -f "$package_log"
 
-# The programs the Python tests run, from the tests' build (drive-sim, odgen, od-master,
-# network-boot).
-for bin in odgen drive-sim od-master network-boot xtask; do
-  [ -x "$target/debug/$bin" ] || { echo "cargo build did not build $target/debug/$bin" >&2; exit 1; }
-done
-
 # The host crates and programs with their own features alone, as a user's `cargo build` gets
 # them (the tests' build has the dev-dependencies' features too), for this machine (SocketCAN
 # and slcan on Linux), Windows and macOS (slcan adapters are reached there through the
@@ -234,13 +242,14 @@ rustup target add thumbv7em-none-eabihf
 # state machine, "save" refused with 0800 0020h) holds, and every other service still works.
 # Linted as it builds, like the workspace's tests; the benchmarks build and run once too, and
 # the doc examples run without those features as well.
-cargo test -p od-runtime --no-default-features --features embedded-can --all-targets --locked "${lint[@]}"
-cargo test -p od-runtime --no-default-features --features embedded-can --doc --locked "${lint[@]}"
+cargo test -p od-runtime --no-default-features --features embedded-can --all-targets --locked "${tests_build[@]}"
+cargo test -p od-runtime --no-default-features --features embedded-can --doc --locked "${tests_build[@]}"
 
 
 step "pytest's results (started ${pytest_started}s)"
 pytest_rc=0
 wait "$pytest_pid" || pytest_rc=$?
 cat "$pytest_logs/all.out"
+rm -rf "$pytest_programs" "$pytest_logs"
 echo "pytest: $((SECONDS - pytest_started)) s from its start, exit $pytest_rc"
 exit "$pytest_rc"
