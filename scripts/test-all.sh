@@ -19,8 +19,7 @@ cpu() {
 step() { cpu; printf '\n==> [%4ss, cpu %ss] %s\n' "$SECONDS" "$cpu_s" "$*"; }
 # A step that fails ends the run: the Python tests, when they run in the background, end with it.
 pytest_pid=
-firmware_pid=
-trap 'rc=$?; for job in $pytest_pid $firmware_pid; do kill -- "-$job" 2>/dev/null || true; done; cpu; printf "\n==> [%4ss, cpu %ss] done (exit %s)\n" "$SECONDS" "$cpu_s" "$rc"; rm -f "$cpu_file"' EXIT
+trap 'rc=$?; [ -z "$pytest_pid" ] || kill -- "-$pytest_pid" 2>/dev/null || true; cpu; printf "\n==> [%4ss, cpu %ss] done (exit %s)\n" "$SECONDS" "$cpu_s" "$rc"; rm -f "$cpu_file"' EXIT
 
 # The public EDS corpus lives beside the repository (../shared/eds-corpus) on the project's
 # machines; the corpus tests say they are skipped when it is absent.
@@ -118,23 +117,6 @@ programs=(drive-sim odgen od-master network-boot inline-macro-user)
 for bin in "${programs[@]}" xtask; do
   [ -x "$target/debug/$bin" ] || { echo "cargo build did not build $target/debug/$bin" >&2; exit 1; }
 done
-
-# The firmware example for a Cortex-M4F, once per device, against the size budget (flash, RAM,
-# a static stack bound, no core::fmt), in the background from here on, at a lower priority:
-# its three builds for the microcontroller (whole-program optimisation, one codegen unit, so
-# mostly one core) take the CPU the tests leave idle. In a target directory of its own, so
-# that neither cargo waits for the other's lock; it shares nothing with the tests' build
-# anyway (the firmware profile's build scripts and proc macros have a directory of their own).
-# The xtask the tests' build built (`cargo xtask` would build it again: `cargo run -p xtask`
-# resolves features for xtask alone, and recompiled the reader and the generator, 12 s).
-# Its output is printed, and its result counted, at the end. `rustup target add` is a no-op
-# when the target is there.
-step "firmware size budget (thumbv7em-none-eabihf, cargo xtask size), in the background"
-rustup target add thumbv7em-none-eabihf
-firmware_log=$(mktemp)
-CARGO_TARGET_DIR="$target/firmware-size" setsid nice -n 10 "$target/debug/xtask" size >"$firmware_log" 2>&1 &
-firmware_pid=$!
-firmware_started=$SECONDS
 
 # The Python tests wait on the simulated drives' real time, not on the CPU (in one process:
 # 6.4 minutes of wall time for 35 s of CPU), and every drive-sim, hub and client listens on a
@@ -248,7 +230,13 @@ hosts=(-p od-master -p od-master-cli -p odgen -p drive -p network-boot -p xtask 
 RUSTFLAGS="-D warnings" cargo check --locked --target "$host" --target x86_64-pc-windows-gnu \
   --target aarch64-apple-darwin "${hosts[@]}" "${syn_optimized[@]}"
 
-step "od-runtime without the optional services (sdo-block, cia402, store)"
+# The firmware example for a Cortex-M4F, once per device, against the size budget (flash, RAM,
+# a static stack bound, no core::fmt). `rustup target add` is a no-op when the target is there.
+step "firmware size budget (thumbv7em-none-eabihf, cargo xtask size)"
+rustup target add thumbv7em-none-eabihf
+# The xtask the tests' build built (`cargo xtask` would build it again: `cargo run -p xtask`
+# resolves features for xtask alone, and recompiled the reader and the generator, 12 s).
+"$target/debug/xtask" size
 # od-runtime without the services a firmware may leave out (sdo-block, cia402, store): linted
 # and tested, so what each feature's absence means (block refused with 0504 0001h, no CiA 402
 # state machine, "save" refused with 0800 0020h) holds, and every other service still works.
@@ -257,15 +245,6 @@ step "od-runtime without the optional services (sdo-block, cia402, store)"
 cargo test -p od-runtime --no-default-features --features embedded-can --all-targets --locked "${tests_build[@]}"
 cargo test -p od-runtime --no-default-features --features embedded-can --doc --locked "${tests_build[@]}"
 
-
-step "firmware size budget's results (started ${firmware_started}s)"
-firmware_rc=0
-wait "$firmware_pid" || firmware_rc=$?
-firmware_pid=
-cat "$firmware_log"
-rm -f "$firmware_log"
-echo "firmware size budget: $((SECONDS - firmware_started)) s from its start, exit $firmware_rc"
-[ "$firmware_rc" -eq 0 ] || exit "$firmware_rc"
 
 step "pytest's results (started ${pytest_started}s)"
 pytest_rc=0
