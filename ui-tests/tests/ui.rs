@@ -71,7 +71,9 @@ fn client_files() {
 /// `CARGO_ENCODED_RUSTFLAGS` over the `--config` flags trybuild passes, so with the second set
 /// here both builds are one: the cases get the flags trybuild gives them, the dependencies are
 /// checked once. `RUSTFLAGS` trybuild removes; this one it leaves. Units separated by 0x1f, as
-/// cargo reads the variable.
+/// cargo reads the variable. (What trybuild adds when `RUSTFLAGS` asks for a coverage build,
+/// `-C instrument-coverage`, is not carried over; the project measures no coverage. Add it
+/// here if it ever does.)
 const TRYBUILD_FLAGS: &str = "--cfg\x1ftrybuild\x1f--verbose\x1f-A\x1fdead_code\x1f--diagnostic-width=140";
 
 #[test]
