@@ -179,8 +179,9 @@ RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --all-features --locked "${publis
 # feature only a sibling turned on, a warning with a feature left off: `od-bus` without tokio
 # warned of dead code) fails the check just as it fails the build; the build also generates
 # the code of each crate and its dependencies again. Fresh clones, 2026-12-07, the Python tests
-# running beside both: this check 50 s (142 s of CPU), cargo package's verification build 76 s
-# (193 s of CPU).
+# running beside both: this check 50 s, cargo package's verification build 76 s (their CPU
+# figures, 142 s and 193 s, included the Python tests', counted when they ended); alone after
+# the tests (5b51792), this check took 33 s and 43 s of CPU.
 step "cargo package (the published crates), each checked from its .crate alone (warnings denied)"
 version=$(sed -n 's/^version = "\(.*\)"$/\1/p' Cargo.toml | head -n 1)
 cargo package --no-verify --locked --allow-dirty "${published[@]/#/-p}"
