@@ -168,8 +168,11 @@ cargo test --workspace --doc --locked --no-fail-fast "${tests_build[@]}"
 # test/benchmark ..." is cargo saying so. --allow-dirty: a local run checks the working tree
 # as it is.
 published=(od-sidecar od-runtime od-bus od-master canopen-eds od-codegen od-macros)
+# With the tests' build's syn: the proc macros the dependencies' docs need (serde_derive,
+# thiserror-impl, tokio's and futures' macros) are that build's then, not compiled again with
+# another syn (10 s of CPU, 2026-12-07).
 step "docs of the published crates (warnings denied)"
-RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --all-features --locked "${published[@]/#/-p}"
+RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --all-features --locked "${published[@]/#/-p}" "${syn_optimized[@]}"
 
 # Each .crate is unpacked and checked on its own, as crates.io will have it: the workspace
 # crates it depends on come from their .crate files too (a workspace of the unpacked crates,
