@@ -238,6 +238,14 @@ def canopen_network():
     _python_packages()
     import canopen
 
+    # python-canopen waits 0.3 s for an SDO response and then aborts the transfer. The test
+    # files run six at a time beside the Rust tests, both cores busy: a simulator or the hub
+    # scheduled out for longer than that made a read fail now and then (test_drvi_e2e.py, a
+    # fresh clone, 2026-12-07: "No SDO response received" in the middle of a move). Sized
+    # like `node402`'s waits: a device that does not answer still fails the read, after 1 s.
+    # A test that waits for silence on purpose sets its node's own (test_runtime_nmt.py).
+    canopen.sdo.SdoClient.RESPONSE_TIMEOUT = 1.0
+
     networks = []
 
     def connect(target, channel="can0"):
