@@ -57,6 +57,50 @@ fn check(krate: &Path) -> std::process::Output {
         .expect("run cargo check")
 }
 
+// trybuild's flags (the file says why they are shared).
+#[path = "../../../ui-tests/tests/shared/trybuild_flags.rs"]
+mod trybuild_flags;
+
+/// This machine's target triple (`rustc -vV`), as trybuild passes it to its builds.
+fn host_triple() -> String {
+    let out = Command::new("rustc").arg("-vV").output().expect("run rustc -vV");
+    let text = String::from_utf8_lossy(&out.stdout);
+    text.lines().find_map(|l| l.strip_prefix("host: ")).expect("rustc -vV names the host").to_owned()
+}
+
+/// `cargo check` of the generated clients' crate at `krate`, in trybuild's target directory
+/// (`target/tests/trybuild`, see ui-tests/tests/ui.rs) with trybuild's settings: the crate has
+/// the dependencies of trybuild's project (od-master and od-runtime, which its code names, and
+/// the reader, the generator and the proc macro, which it does not), checked for this
+/// machine's triple with trybuild's flags, so cargo resolves the same features and the two
+/// projects check their dependencies once (tokio, serde, the reader, od-master: about 40 s of
+/// CPU) instead of once each. trybuild's flags change no check here: `-A dead_code` is what the
+/// generated modules allow themselves, the rest is a cfg nothing reads and the output's form.
+/// Incremental compilation is off for this crate only (a fresh check of ~50 MB of source costs
+/// three times more with it); the dependencies keep the outer `cargo test`'s setting, as
+/// trybuild's build of them does.
+fn check_client(krate: &Path) -> std::process::Output {
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    Command::new(cargo)
+        .arg("check")
+        .arg("--quiet")
+        .arg("--offline")
+        .arg("--manifest-path")
+        .arg(krate.join("Cargo.toml"))
+        .arg("--target-dir")
+        .arg(target_dir().join("tests").join("trybuild"))
+        .arg("--target")
+        .arg(host_triple())
+        .arg("--config")
+        .arg("profile.dev.package.od-codegen-compile-all-client.incremental = false")
+        .env_remove("RUSTFLAGS")
+        .env("CARGO_ENCODED_RUSTFLAGS", trybuild_flags::TRYBUILD_FLAGS)
+        .env_remove("CARGO_TARGET_DIR")
+        .env_remove("CARGO_BUILD_TARGET_DIR")
+        .output()
+        .expect("run cargo check")
+}
+
 /// The corpus files, or `None` (with a message) when `$EDS_CORPUS_DIR` is not set.
 fn corpus() -> Option<Vec<PathBuf>> {
     let Some(dir) = std::env::var_os("EDS_CORPUS_DIR") else {
@@ -179,7 +223,8 @@ fn every_description_generates_code_that_compiles_with_warnings_denied() {
 /// The client (`Builder::client`): the master's view generated for every corpus file, every
 /// fixture the reader accepts, the three devices with their sidecars (units, PDO layouts) and
 /// random models goes into one crate on `od-master`, which `cargo check` must accept with
-/// warnings denied (`target/od-codegen-compile-all-client`).
+/// warnings denied (`target/od-codegen-compile-all-client`, checked in trybuild's target
+/// directory: [`check_client`]).
 #[test]
 fn every_description_generates_a_client_that_compiles_with_warnings_denied() {
     let root = workspace_root();
@@ -270,11 +315,18 @@ fn every_description_generates_a_client_that_compiles_with_warnings_denied() {
     lib.push_str("}\n");
     lib.push_str(&standard_users);
     od_codegen::write_if_changed(&src.join("lib.rs"), &lib).unwrap();
+    // The dependencies of trybuild's project (ui-tests' dev-dependencies): the code names
+    // od_master and od_runtime only; the other three make cargo resolve the features trybuild's
+    // project gets, so that both check against the same compiled dependencies (`check_client`).
     let manifest = format!(
         "[package]\nname = \"od-codegen-compile-all-client\"\nversion = \"0.0.0\"\nedition = \"2024\"\npublish = false\n\n\
-         [dependencies]\nod-runtime = {{ path = {:?} }}\nod-master = {{ path = {:?} }}\n\n[workspace]\n",
+         [dependencies]\nod-runtime = {{ path = {:?} }}\nod-master = {{ path = {:?} }}\n\
+         eds = {{ path = {:?}, package = \"canopen-eds\" }}\nod-codegen = {{ path = {:?} }}\nod-macros = {{ path = {:?} }}\n\n[workspace]\n",
         root.join("od-runtime").display().to_string(),
-        root.join("od-master").display().to_string()
+        root.join("od-master").display().to_string(),
+        root.join("eds").display().to_string(),
+        root.join("od-codegen").display().to_string(),
+        root.join("od-macros").display().to_string()
     );
     od_codegen::write_if_changed(&krate.join("Cargo.toml"), &manifest).unwrap();
     // The workspace's lock file, so the inner build resolves offline to the versions already built.
@@ -283,7 +335,7 @@ fn every_description_generates_a_client_that_compiles_with_warnings_denied() {
         std::fs::write(krate.join("Cargo.lock"), lock).unwrap();
     }
     let started = std::time::Instant::now();
-    let out = check(&krate);
+    let out = check_client(&krate);
     let stderr = String::from_utf8_lossy(&out.stderr);
     println!("{} clients, checked in {:.1?}", modules.len(), started.elapsed());
     assert!(out.status.success(), "the generated clients do not compile (crate at {}):\n{stderr}", krate.display());
