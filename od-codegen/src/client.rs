@@ -313,8 +313,9 @@ fn pdo_items(model: &Model, plan: &Plan<'_>, taken: &mut BTreeSet<String>) -> To
                 const DIRECTION: ::od_runtime::pdo::Direction = #dir_tokens;
                 const NUMBER: u16 = #n;
                 const MAPPING: &'static [u32] = &[#(#raw),*];
-                fn to_bytes(&self) -> Vec<u8> {
-                    self.pack().to_vec()
+                type Bytes = [u8; super::pdo::#name::LEN];
+                fn to_bytes(&self) -> Self::Bytes {
+                    self.pack()
                 }
                 fn from_bytes(data: &[u8]) -> Option<Self> {
                     Self::unpack(data).ok()

@@ -673,8 +673,11 @@ pub trait PdoLayout: Sized {
     /// The mapping entries (`0xIIIISSLL`), checked by the generator against the device's
     /// rules: at most 64 bits, every entry mappable in this direction.
     const MAPPING: &'static [u32];
+    /// The PDO's bytes: for a generated layout, an array of its length (`[u8; LEN]`), so that
+    /// sending one allocates nothing and the generated code needs nothing of `std`.
+    type Bytes: AsRef<[u8]>;
     /// The PDO's bytes.
-    fn to_bytes(&self) -> Vec<u8>;
+    fn to_bytes(&self) -> Self::Bytes;
     /// A received PDO; `None` when it is shorter than the mapping.
     fn from_bytes(data: &[u8]) -> Option<Self>;
 }
@@ -812,8 +815,8 @@ impl<P: PdoLayout> Pdo<'_, P, Sent> {
     /// Sends `value`.
     pub async fn send(&self, value: P) -> Result<(), Error> {
         let cob = self.cob_id().await?;
-        let frame =
-            od_bus::CanFrame::standard(u32::from(cob), &value.to_bytes()).map_err(od_bus::TransportError::from)?;
+        let frame = od_bus::CanFrame::standard(u32::from(cob), value.to_bytes().as_ref())
+            .map_err(od_bus::TransportError::from)?;
         self.node.bus().send(frame).await
     }
 }

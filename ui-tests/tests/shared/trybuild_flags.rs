@@ -1,6 +1,6 @@
 //! The compiler flags of trybuild's inner builds, as cargo's environment variable: shared by
 //! the compile-fail test (`ui-tests/tests/ui.rs`) and od-codegen's check of the generated
-//! clients (`od-codegen/tests/it/compile_all.rs`), which checks its crate in trybuild's target
+//! code (`od-codegen/tests/it/compile_all.rs`), which checks its crate in trybuild's target
 //! directory with these flags so that both compile their common dependencies once.
 //!
 //! trybuild builds its project's dependencies first with `--cfg trybuild --verbose -A
