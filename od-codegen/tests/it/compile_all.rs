@@ -9,7 +9,9 @@
 //! seed, so a failure reproduces) from the parts real files get wrong: names that collide or
 //! are keywords, ordinals, non-ASCII, defaults and limits outside the type (REAL32 beyond
 //! `f32`, NaN), `$NODEID` values, unsupported types, and PDO mappings of absent, unmappable,
-//! mistyped and placeholder entries. The crate lives in the target directory
+//! mistyped and placeholder entries. Everything is generated on the text path (`expand_text`,
+//! the Builder's), which `text_path.rs` holds byte for byte to the token path (`expand` and
+//! `render`) on these same files and random models (the clients on the random models). The crate lives in the target directory
 //! (`target/od-codegen-compile-all`) and is checked in trybuild's (`target/tests/trybuild`);
 //! files are written only when they change, so a run with nothing changed checks nothing
 //! again. The crate's check is not incremental: a change rechecks it whole (about 30 s), less
@@ -166,13 +168,13 @@ fn every_description_generates_code_and_a_client_that_compile_with_warnings_deni
                 read_errors.push(f.display().to_string());
                 continue;
             }
-            let g = od_codegen::expand(&parsed.model, &od_codegen::Options::new(m.clone(), m.clone()));
+            let g = od_codegen::expand_text(&parsed.model, &od_codegen::Options::new(m.clone(), m.clone()));
             assert!(
                 g.diagnostics.iter().all(|d| d.severity != Severity::Error || d.code.0.starts_with("G02")),
                 "{m}: {}",
                 od_codegen::diag::render_plain(&g.diagnostics)
             );
-            let text = od_codegen::render(&g.tokens, &m).unwrap();
+            let text = g.render(&m).unwrap();
             od_codegen::write_if_changed(&src.join(format!("{m}.rs")), &text).unwrap();
             modules.push(m);
             continue;
@@ -241,13 +243,12 @@ fn every_description_generates_code_and_a_client_that_compile_with_warnings_deni
         let m = format!("random_{seed:02}");
         let model = common::random::model(seed);
         let mut options = od_codegen::Options::new(m.clone(), format!("{m}.eds"));
-        let dictionary = od_codegen::expand(&model, &options);
+        let dictionary = od_codegen::expand_text(&model, &options);
         let errors: Vec<_> = dictionary.diagnostics.iter().filter(|d| d.severity == Severity::Error).cloned().collect();
         assert!(errors.is_empty(), "seed {seed}: {}", od_codegen::diag::render_plain(&errors));
-        let dictionary = od_codegen::render(&dictionary.tokens, &m).unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+        let dictionary = dictionary.render(&m).unwrap_or_else(|e| panic!("seed {seed}: {e}"));
         options.client = true;
-        let g = od_codegen::expand(&model, &options);
-        let text = od_codegen::render(&g.tokens, &m).unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+        let text = od_codegen::expand_text(&model, &options).render(&m).unwrap_or_else(|e| panic!("seed {seed}: {e}"));
         client_adds_only_remote(&dictionary, &text).unwrap_or_else(|e| panic!("seed {seed}: {e}"));
         od_codegen::write_if_changed(&src.join(format!("{m}.rs")), &text).unwrap();
         modules.push(m);

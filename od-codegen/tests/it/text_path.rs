@@ -8,7 +8,7 @@
 //!   every fixture of this crate;
 //! - the bundled devices with their sidecars, as `cargo xtask gen` generates them (the
 //!   description embedded, the names behind a feature);
-//! - the random models of `compile_all.rs`, names never and always;
+//! - the random models of `compile_all.rs`, names never and always, and with the client;
 //! - models whose names sweep every length a name can have, with every storage type, defaults
 //!   (`$NODEID`, strings) and limits, so each layout decision of the text writers (a line that
 //!   fits the margin, one that does not, one near it) is met on both sides.
@@ -86,6 +86,10 @@ fn random_models() {
         let mut options = Options::new(format!("random_{seed:02}"), format!("random_{seed:02}.eds"));
         options.names = if seed % 2 == 0 { Names::Always } else { Names::Never };
         same_file(&format!("seed {seed}"), &model, &options);
+        // As compile_all.rs generates them: the default names, with the client.
+        let mut options = Options::new(format!("random_{seed:02}"), format!("random_{seed:02}.eds"));
+        options.client = true;
+        same_file(&format!("seed {seed} with the client"), &model, &options);
     }
 }
 
