@@ -29,9 +29,18 @@ if [ -z "${EDS_CORPUS_DIR:-}" ] && [ -d "$root/../shared/eds-corpus" ]; then
 fi
 
 # A CI run builds everything once from nothing: incremental compilation's caches cost time to
-# write there and are never read again. A local run keeps them.
+# write there and are never read again. A local run keeps them. Nor does a CI run write line
+# tables for the workspace's crates (the dev profile's and build-override's, .cargo/config.toml):
+# a failing test or program still says where (a panic's message has its file, line and column
+# from the panic's location, not from debug info); only a backtrace's frames lose their lines,
+# and nothing here prints one. The tests' build from a fresh clone, 2026-12-07, one after the
+# other: 204 s of CPU (106 s) with line tables, 193 s (100 s) without, and a target directory
+# of 0.9 GB instead of 1.3 GB. Exported, so that the tests' own inner builds (trybuild's
+# project, the generated crates, the build-script project) and every later step keep the
+# settings the tests' build was made with.
 if [ -n "${CI:-}" ]; then
   export CARGO_INCREMENTAL=0
+  export CARGO_PROFILE_DEV_DEBUG=false CARGO_PROFILE_DEV_BUILD_OVERRIDE_DEBUG=false
 fi
 
 # The venv is made (a minute on a fresh clone, most of it waiting on downloads) while the
