@@ -1,21 +1,22 @@
 //! "The tokens always compile": the code generated for every file of the EDS corpus
 //! (`$EDS_CORPUS_DIR`, skipped with a message when unset) and for every fixture of this crate,
 //! bad ones included, each with its client (the master's view, `Builder::client`), goes into
-//! one `#![no_std]` crate on `od-master`, a module per file, which `cargo check` must accept
-//! with warnings denied.
+//! `#![no_std]` crates on `od-master`, a module per file, which `cargo check` must accept with
+//! warnings denied.
 //!
 //! Generation is lenient (the default): every file the reader loads without errors must
-//! generate without errors. Beside the files, the crate holds models built at random (a fixed
+//! generate without errors. Beside the files, the crates hold models built at random (a fixed
 //! seed, so a failure reproduces) from the parts real files get wrong: names that collide or
 //! are keywords, ordinals, non-ASCII, defaults and limits outside the type (REAL32 beyond
 //! `f32`, NaN), `$NODEID` values, unsupported types, and PDO mappings of absent, unmappable,
 //! mistyped and placeholder entries. Everything is generated on the text path (`expand_text`,
 //! the Builder's), which `text_path.rs` holds byte for byte to the token path (`expand` and
-//! `render`) on these same files and random models (the clients on the random models). The crate lives in the target directory
-//! (`target/od-codegen-compile-all`) and is checked in trybuild's (`target/tests/trybuild`);
+//! `render`) on these same files and random models (the clients on the random models). The
+//! crates, two halves of one workspace, live in the target directory
+//! (`target/od-codegen-compile-all`) and are checked in trybuild's (`target/tests/trybuild`);
 //! files are written only when they change, so a run with nothing changed checks nothing
-//! again. The crate's check is not incremental: a change rechecks it whole (about 30 s), less
-//! than one incremental fresh check.
+//! again. The check is not incremental: a change rechecks a half whole (about 15 s), less than
+//! one incremental fresh check.
 
 use crate::common;
 
@@ -47,7 +48,12 @@ fn host_triple() -> String {
     text.lines().find_map(|l| l.strip_prefix("host: ")).expect("rustc -vV names the host").to_owned()
 }
 
-/// `cargo check` of the generated crate at `krate`, in trybuild's target directory
+/// The generated crate's two halves, packages of one workspace: `cargo check` of one crate of
+/// ~50 MB is one core's work (25 s, 2026-12-07), and runs after the dependencies, when the
+/// suite's other tests have ended; two halves of it took 15 s on two cores, for 2 s more of CPU.
+const HALVES: [&str; 2] = ["od-codegen-compile-all-a", "od-codegen-compile-all-b"];
+
+/// `cargo check` of the generated crates of the workspace at `krate`, in trybuild's target directory
 /// (`target/tests/trybuild`, see ui-tests/tests/ui.rs) with trybuild's settings: the crate has
 /// the dependencies of trybuild's project (od-master and od-runtime, which its code names, and
 /// the reader, the generator and the proc macro, which it does not), checked for this
@@ -55,7 +61,7 @@ fn host_triple() -> String {
 /// projects check their dependencies once (tokio, serde, the reader, od-master: about 40 s of
 /// CPU) instead of once each. trybuild's flags change no check here: `-A dead_code` is what the
 /// generated modules allow themselves, the rest is a cfg nothing reads and the output's form.
-/// Incremental compilation is off for this crate only (a fresh check of ~50 MB of source costs
+/// Incremental compilation is off for these crates only (a fresh check of ~50 MB of source costs
 /// three times more with it); the dependencies keep the outer `cargo test`'s setting, as
 /// trybuild's build of them does.
 fn check(krate: &Path) -> std::process::Output {
@@ -70,8 +76,10 @@ fn check(krate: &Path) -> std::process::Output {
         .arg(target_dir().join("tests").join("trybuild"))
         .arg("--target")
         .arg(host_triple())
-        .arg("--config")
-        .arg("profile.dev.package.od-codegen-compile-all.incremental = false")
+        .arg("--workspace")
+        .args(
+            HALVES.iter().flat_map(|h| ["--config".to_owned(), format!("profile.dev.package.{h}.incremental = false")]),
+        )
         .env_remove("RUSTFLAGS")
         .env("CARGO_ENCODED_RUSTFLAGS", trybuild_flags::TRYBUILD_FLAGS)
         .env_remove("CARGO_TARGET_DIR")
@@ -120,14 +128,15 @@ fn client_adds_only_remote(plain: &str, client: &str) -> Result<(), String> {
 
 /// Every corpus file, every fixture (those with reader errors too: their code is still what the
 /// tokens are) and random models generate a dictionary and a client (`Builder::client`), and
-/// the three devices theirs with their sidecars (units, PDO layouts); all of it goes into one
-/// `#![no_std]` crate on `od-master`, a module per description, which `cargo check` must accept
-/// with warnings denied (`target/od-codegen-compile-all`, checked in trybuild's target
+/// the three devices theirs with their sidecars (units, PDO layouts); all of it goes into two
+/// `#![no_std]` crates on `od-master` ([`HALVES`] of about the same size, each with the program
+/// written against the standard names), a module per description, which `cargo check` must
+/// accept with warnings denied (`target/od-codegen-compile-all`, checked in trybuild's target
 /// directory: [`check`]). A client is its dictionary with a `remote` module added
 /// ([`client_adds_only_remote`], checked against a generation without the client for every
 /// description that has one), so the crate checks the dictionaries as a firmware gets them, in a
 /// crate without `std`, and the clients as a master gets them: the client's code names nothing
-/// of `std` but through `od_master`. One crate rather than a crate of dictionaries and a crate
+/// of `std` but through `od_master`. The same crates rather than crates of dictionaries and crates
 /// of clients: the dictionaries, 80% of the clients' code, were checked twice (21 s of one core,
 /// 2026-12-07).
 #[test]
@@ -150,7 +159,7 @@ fn every_description_generates_code_and_a_client_that_compile_with_warnings_deni
     // The vendor files' own methods of CiA 402's motion objects, typed by dimension without a
     // sidecar, and a program written once against the standard names, used with every drive's
     // client (the corpus's CiA 402 files, the project's DRVI, DRCS and AKD).
-    let mut standard_users = String::new();
+    let mut standard_users = std::collections::BTreeMap::new();
     let mut drives = Vec::new();
     // Each corpus module's objects, to check that every PDO method has both its objects.
     let mut pdo_objects: std::collections::BTreeMap<String, std::collections::BTreeSet<u16>> = Default::default();
@@ -181,7 +190,7 @@ fn every_description_generates_code_and_a_client_that_compile_with_warnings_deni
         }
         plain = plain.device(&m, f).no_sidecar();
         builder = builder.device(&m, f).no_sidecar();
-        standard_users.push_str(&typed_by_dimension(&m, &parsed.model));
+        standard_users.insert(m.clone(), typed_by_dimension(&m, &parsed.model));
         pdo_objects.insert(m.clone(), parsed.model.objects.keys().map(|i| i.0).collect());
         if od_codegen::standard::has_cia402(&parsed.model) {
             drives.push(m.clone());
@@ -254,36 +263,61 @@ fn every_description_generates_code_and_a_client_that_compile_with_warnings_deni
         modules.push(m);
     }
 
-    let mut lib = String::from(
-        "//! Every description's generated module with its client (written by od-codegen's tests/compile_all.rs).\n\
-         #![no_std]\n#![deny(warnings)]\n\n",
-    );
-    for m in &modules {
-        lib.push_str(&format!("include!(\"{m}.rs\");\n"));
+    // The modules split into two halves of about the same size, each with the program written
+    // against the standard names and its drives' uses of it.
+    let mut halves: [(u64, Vec<&String>); 2] = Default::default();
+    let mut by_size: Vec<(u64, &String)> =
+        modules.iter().map(|m| (std::fs::metadata(src.join(format!("{m}.rs"))).unwrap().len(), m)).collect();
+    by_size.sort_by(|a, b| b.cmp(a));
+    for (size, m) in by_size {
+        let half = if halves[0].0 <= halves[1].0 { 0 } else { 1 };
+        halves[half].0 += size;
+        halves[half].1.push(m);
     }
-    lib.push_str(STANDARD_USER);
-    lib.push_str("\n/// Every drive's client through the one program.\npub fn every_drive() {\n");
-    for d in &drives {
-        lib.push_str(&format!("    let _ = standard_user::move_to::<{d}::remote::Remote>;\n"));
-    }
-    lib.push_str("}\n");
-    lib.push_str(&standard_users);
-    od_codegen::write_if_changed(&src.join("lib.rs"), &lib).unwrap();
     // The dependencies of trybuild's project (ui-tests' dev-dependencies): the code names
     // od_master and od_runtime only; the other three make cargo resolve the features trybuild's
     // project gets, so that both check against the same compiled dependencies (`check`).
     // od-runtime's features are its defaults either way, as the dictionaries' alone would get.
-    let manifest = format!(
-        "[package]\nname = \"od-codegen-compile-all\"\nversion = \"0.0.0\"\nedition = \"2024\"\npublish = false\n\n\
-         [dependencies]\nod-runtime = {{ path = {:?} }}\nod-master = {{ path = {:?} }}\n\
-         eds = {{ path = {:?}, package = \"canopen-eds\" }}\nod-codegen = {{ path = {:?} }}\nod-macros = {{ path = {:?} }}\n\n[workspace]\n",
+    let dependencies = format!(
+        "[dependencies]\nod-runtime = {{ path = {:?} }}\nod-master = {{ path = {:?} }}\n\
+         eds = {{ path = {:?}, package = \"canopen-eds\" }}\nod-codegen = {{ path = {:?} }}\nod-macros = {{ path = {:?} }}\n",
         root.join("od-runtime").display().to_string(),
         root.join("od-master").display().to_string(),
         root.join("eds").display().to_string(),
         root.join("od-codegen").display().to_string(),
         root.join("od-macros").display().to_string()
     );
-    od_codegen::write_if_changed(&krate.join("Cargo.toml"), &manifest).unwrap();
+    for (name, (_, half)) in HALVES.iter().zip(&halves) {
+        let dir = krate.join(name);
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut lib = String::from(
+            "//! Half of the descriptions' generated modules with their clients (written by od-codegen's tests/compile_all.rs).\n\
+             #![no_std]\n#![deny(warnings)]\n\n",
+        );
+        for m in half {
+            lib.push_str(&format!("include!(\"../src/{m}.rs\");\n"));
+        }
+        lib.push_str(STANDARD_USER);
+        lib.push_str("\n/// Every drive's client through the one program.\npub fn every_drive() {\n");
+        for d in drives.iter().filter(|d| half.contains(d)) {
+            lib.push_str(&format!("    let _ = standard_user::move_to::<{d}::remote::Remote>;\n"));
+        }
+        lib.push_str("}\n");
+        for m in half {
+            lib.push_str(standard_users.get(*m).map_or("", String::as_str));
+        }
+        od_codegen::write_if_changed(&dir.join("lib.rs"), &lib).unwrap();
+        let manifest = format!(
+            "[package]\nname = \"{name}\"\nversion = \"0.0.0\"\nedition = \"2024\"\npublish = false\n\n\
+             [lib]\npath = \"lib.rs\"\n\n{dependencies}"
+        );
+        od_codegen::write_if_changed(&dir.join("Cargo.toml"), &manifest).unwrap();
+    }
+    // (The crate of an older layout.)
+    let _ = std::fs::remove_file(src.join("lib.rs"));
+    let workspace =
+        format!("[workspace]\nresolver = \"3\"\nmembers = [{}]\n", HALVES.map(|h| format!("{h:?}")).join(", "));
+    od_codegen::write_if_changed(&krate.join("Cargo.toml"), &workspace).unwrap();
     // The workspace's lock file, so the inner build resolves offline to the versions already built.
     // (Cargo trims it to the crate's dependencies; one without od-master is an older layout's.)
     let lock = std::fs::read_to_string(root.join("Cargo.lock")).unwrap();
@@ -302,7 +336,7 @@ fn every_description_generates_code_and_a_client_that_compile_with_warnings_deni
         generated_in,
         started.elapsed()
     );
-    assert!(out.status.success(), "the generated code does not compile (crate at {}):\n{stderr}", krate.display());
+    assert!(out.status.success(), "the generated code does not compile (crates at {}):\n{stderr}", krate.display());
 }
 
 /// A program written once against the standard names (`od_master::profile`), for any drive.
