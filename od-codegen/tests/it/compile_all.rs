@@ -313,8 +313,9 @@ fn every_description_generates_code_and_a_client_that_compile_with_warnings_deni
         );
         od_codegen::write_if_changed(&dir.join("Cargo.toml"), &manifest).unwrap();
     }
-    // (The crate of an older layout.)
+    // (The crate of an older layout, and the target directory it had of its own.)
     let _ = std::fs::remove_file(src.join("lib.rs"));
+    let _ = std::fs::remove_dir_all(krate.join("target"));
     let workspace =
         format!("[workspace]\nresolver = \"3\"\nmembers = [{}]\n", HALVES.map(|h| format!("{h:?}")).join(", "));
     od_codegen::write_if_changed(&krate.join("Cargo.toml"), &workspace).unwrap();
