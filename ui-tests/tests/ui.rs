@@ -62,8 +62,8 @@ fn client_files() {
     od_codegen::write_if_changed(&dir.join("drvi-without-607a.eds"), &trimmed).unwrap();
 }
 
-// trybuild's flags, which od-codegen's check of the generated clients uses too (the file says
-// why).
+// trybuild's flags, which od-codegen's check of the generated code (dictionaries and clients)
+// uses too (the file says why).
 #[path = "shared/trybuild_flags.rs"]
 mod trybuild_flags;
 use trybuild_flags::TRYBUILD_FLAGS;
